@@ -1,0 +1,33 @@
+//! `gelrig plan`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Expand a protocol into steps with duration, frames and data volume.
+#[derive(clap::Args)]
+pub(crate) struct Cmd {
+    /// Protocol file.
+    protocol: PathBuf,
+    /// Rig file (default: the protocol's `rig:`).
+    #[arg(long)]
+    rig: Option<PathBuf>,
+    /// Print the plan as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl Cmd {
+    pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
+        let loaded = match super::load_or_report(&self.protocol, self.rig.as_deref()) {
+            Ok(l) => l,
+            Err(code) => return Ok(code),
+        };
+        let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+        if self.json {
+            println!("{}", serde_json::to_string_pretty(&plan)?);
+        } else {
+            print!("{}", plan.render(&loaded.protocol, &loaded.rig));
+        }
+        Ok(ExitCode::SUCCESS)
+    }
+}

@@ -1,0 +1,23 @@
+//! `gelrig schema`.
+
+use std::process::ExitCode;
+
+/// Print the JSON Schema of protocol files (or rig files).
+#[derive(clap::Args)]
+pub(crate) struct Cmd {
+    /// The rig-file schema instead of the protocol schema.
+    #[arg(long)]
+    rig: bool,
+}
+
+impl Cmd {
+    pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
+        let schema = if self.rig {
+            schemars::schema_for!(rig::config::RigConfig)
+        } else {
+            schemars::schema_for!(experiments::protocol::schema::Protocol)
+        };
+        println!("{}", serde_json::to_string_pretty(&schema)?);
+        Ok(ExitCode::SUCCESS)
+    }
+}

@@ -1,0 +1,54 @@
+//! `gelrig`: run tactile-force experiments on GelSight sensors from YAML protocols.
+//!
+//! Thin by design: each subcommand parses its arguments and calls the `experiments` crate.
+//! Exit codes: 0 success; 1 run failed or other error; 2 invalid protocol or rig (or bad
+//! command line); 3 run aborted by a safety limit or settle timeout; 130 run interrupted.
+
+mod cmd;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "gelrig",
+    version,
+    about = "Tactile-force experiments on GelSight sensors, from YAML protocols"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Check a protocol and its rig; errors name file, line, column and the fix (exit 2).
+    Validate(cmd::validate::Cmd),
+    /// Expand a protocol into steps, with duration, frames and data volume.
+    Plan(cmd::plan::Cmd),
+    /// Run a protocol; the shipped protocols run on the simulated rig in virtual time.
+    Run(cmd::run::Cmd),
+    /// List runs with their status (completed, aborted, failed, running, interrupted).
+    Runs(cmd::runs::Cmd),
+    /// Print the JSON Schema of protocol files (or rig files), for editors.
+    Schema(cmd::schema::Cmd),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Validate(c) => c.run(),
+        Command::Plan(c) => c.run(),
+        Command::Run(c) => c.run(),
+        Command::Runs(c) => c.run(),
+        Command::Schema(c) => c.run(),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}

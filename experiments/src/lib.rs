@@ -1,0 +1,19 @@
+//! Experiments on a GelSight bench: protocols in, run directories out.
+//!
+//! This crate turns a YAML protocol into a run. It parses and checks the protocol against
+//! a rig file ([`protocol`]), expands it into steps with durations and data volumes
+//! ([`plan`]), executes it on the devices the rig crate opens — real or simulated — with
+//! settling, capture, a safety watchdog and a safe stop ([`runner`]), and records everything
+//! into a crash-safe run directory ([`record`], listed by [`runs`]).
+//!
+//! The `gelrig` binary is a thin CLI over these modules.
+
+pub mod diag;
+pub mod plan;
+pub mod progress;
+pub mod protocol;
+pub mod record;
+pub mod runner;
+pub mod runs;
+
+pub use diag::{Diagnostic, Severity};

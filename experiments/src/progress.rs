@@ -1,0 +1,148 @@
+//! What a run shows while it runs: a progress bar on a terminal, plain lines otherwise.
+//!
+//! Plain lines (one per completed step, plus notable events) go to stderr so a log or a CI
+//! job shows the run's history; the bar shows step, phase and the remaining time, in run
+//! (virtual) time and, when that differs, wall time.
+
+use std::sync::Mutex;
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::plan::human_duration;
+
+/// How to show progress.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ProgressMode {
+    /// A bar on a terminal, lines otherwise.
+    Auto,
+    /// Always plain lines.
+    Plain,
+    /// Nothing.
+    Quiet,
+}
+
+/// Progress reporting for one run.
+pub struct Progress {
+    bar: Option<ProgressBar>,
+    plain: bool,
+    total_steps: u32,
+    eta_total_s: f64,
+    time_scale: Option<f64>,
+    last_tick: Mutex<Instant>,
+}
+
+impl Progress {
+    /// A reporter for a run of `total_steps` steps planned to take `eta_total_s` of run
+    /// time; `time_scale` is how much faster than the wall the run clock goes (None for
+    /// virtual time).
+    pub fn new(
+        mode: ProgressMode,
+        total_steps: u32,
+        eta_total_s: f64,
+        time_scale: Option<f64>,
+    ) -> Self {
+        let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+        let bar = (mode == ProgressMode::Auto && tty).then(|| {
+            let pb = ProgressBar::with_draw_target(
+                Some(total_steps as u64),
+                ProgressDrawTarget::stderr_with_hz(10),
+            );
+            let style = ProgressStyle::with_template(
+                "{prefix:.bold} [{bar:30.cyan/blue}] {pos}/{len} {msg}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar());
+            pb.set_style(style.progress_chars("=> "));
+            pb.set_prefix("gelrig");
+            pb
+        });
+        Self {
+            plain: mode == ProgressMode::Plain || (mode == ProgressMode::Auto && !tty),
+            bar,
+            total_steps,
+            eta_total_s,
+            time_scale,
+            last_tick: Mutex::new(Instant::now()),
+        }
+    }
+
+    fn clock_text(&self, t_s: f64) -> String {
+        let left = (self.eta_total_s - t_s).max(0.0);
+        match self.time_scale {
+            None => format!(
+                "{} run time, ~{} left (virtual)",
+                human_duration(t_s),
+                human_duration(left)
+            ),
+            Some(k) if (k - 1.0).abs() < 1e-9 => format!(
+                "{} elapsed, ~{} left",
+                human_duration(t_s),
+                human_duration(left)
+            ),
+            Some(k) => format!(
+                "{} run time, ~{} left (~{} wall at ×{k})",
+                human_duration(t_s),
+                human_duration(left),
+                human_duration(left / k)
+            ),
+        }
+    }
+
+    /// A step starts: `what` is e.g. `load normal → 0.336 mm`.
+    pub fn step(&self, step: u32, what: &str, phase: &str, t_s: f64) {
+        if let Some(pb) = &self.bar {
+            pb.set_position(step.saturating_sub(1) as u64);
+            pb.set_message(format!(
+                "step {step}: {what} · {phase} · {}",
+                self.clock_text(t_s)
+            ));
+        }
+    }
+
+    /// The phase changes within a step.
+    pub fn phase(&self, step: u32, what: &str, phase: &str, t_s: f64) {
+        self.step(step, what, phase, t_s);
+    }
+
+    /// Refreshes the clock display at most a few times per wall second.
+    pub fn tick(&self, step: u32, what: &str, phase: &str, t_s: f64) {
+        if self.bar.is_none() {
+            return;
+        }
+        let mut last = self
+            .last_tick
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if last.elapsed().as_millis() >= 200 {
+            *last = Instant::now();
+            self.step(step, what, phase, t_s);
+        }
+    }
+
+    /// A step is done; `line` summarises it.
+    pub fn step_done(&self, step: u32, line: &str) {
+        let text = format!("step {step}/{}: {line}", self.total_steps);
+        if let Some(pb) = &self.bar {
+            pb.set_position(step as u64);
+            pb.println(text);
+        } else if self.plain {
+            eprintln!("{text}");
+        }
+    }
+
+    /// Something worth a line of its own (contact found, tare, safety trip).
+    pub fn note(&self, line: &str) {
+        if let Some(pb) = &self.bar {
+            pb.println(line);
+        } else if self.plain {
+            eprintln!("{line}");
+        }
+    }
+
+    /// Clears the bar.
+    pub fn finish(&self) {
+        if let Some(pb) = &self.bar {
+            pb.finish_and_clear();
+        }
+    }
+}

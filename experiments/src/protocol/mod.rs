@@ -1,0 +1,216 @@
+//! Protocols: schema, loading, checking and expansion.
+//!
+//! Loading follows dora's parse → resolve → check split: [`schema`] parses (serde, unknown
+//! keys denied, units checked), [`load`] resolves the rig file and the sensor defaults,
+//! and [`compile`] checks everything that needs both and expands the sequence.
+
+pub mod compile;
+pub mod schema;
+
+use std::path::{Path, PathBuf};
+
+use rig::config::RigConfig;
+use rig::sim::{MarkerLayout, PlantSpec};
+
+use crate::diag::{Diagnostic, Severity};
+use compile::Compiled;
+use schema::{IndenterSpec, Markers, Protocol};
+
+/// A protocol with its rig, checked and expanded.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    /// The protocol file.
+    pub path: PathBuf,
+    /// Its text, exactly as read.
+    pub text: String,
+    /// Parsed, with sensor defaults filled in.
+    pub protocol: Protocol,
+    /// The rig file used.
+    pub rig_path: PathBuf,
+    /// The rig's text.
+    pub rig_text: String,
+    /// The parsed rig.
+    pub rig: RigConfig,
+    /// The expanded run.
+    pub compiled: Compiled,
+    /// Warnings (errors prevent a `Loaded`).
+    pub warnings: Vec<Diagnostic>,
+}
+
+/// Parses protocol text; the error is located in `file`.
+pub fn parse(file: &Path, text: &str) -> Result<Protocol, Box<Diagnostic>> {
+    serde_yaml::from_str::<Protocol>(text)
+        .map_err(|e| Box::new(Diagnostic::from_yaml_error(file, text, &e)))
+}
+
+fn read(path: &Path, what: &str) -> Result<String, Vec<Diagnostic>> {
+    std::fs::read_to_string(path).map_err(|e| {
+        vec![Diagnostic::file_level(
+            path,
+            format!("cannot read {what}: {e}"),
+            format!(
+                "check the path `{}` and that the file is readable",
+                path.display()
+            ),
+        )]
+    })
+}
+
+/// Reads, parses, resolves and checks `protocol_path` against its rig (or `rig_override`).
+/// Returns every error found, located, or the loaded protocol and its warnings.
+pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded, Vec<Diagnostic>> {
+    let text = read(protocol_path, "the protocol")?;
+    let mut protocol = parse(protocol_path, &text).map_err(|d| vec![*d])?;
+    protocol.sensor.resolve_defaults();
+    let rig_path = match (rig_override, &protocol.rig) {
+        (Some(r), _) => r.to_path_buf(),
+        (None, Some(r)) => protocol_path.parent().unwrap_or(Path::new(".")).join(r),
+        (None, None) => {
+            return Err(vec![Diagnostic::at_path(
+                protocol_path,
+                &text,
+                &rig::config::YamlPath::root().key("name"),
+                Severity::Error,
+                "this protocol names no rig",
+                "add `rig: rigs/sim.yaml` (relative to the protocol) or pass `--rig FILE`",
+            )]);
+        }
+    };
+    let rig_text = read(&rig_path, "the rig file")?;
+    let rig = RigConfig::from_yaml_str(&rig_text)
+        .map_err(|e| vec![Diagnostic::from_yaml_error(&rig_path, &rig_text, &e)])?;
+    let mut diags: Vec<Diagnostic> = rig
+        .check()
+        .into_iter()
+        .map(|i| {
+            Diagnostic::at_path(
+                &rig_path,
+                &rig_text,
+                &i.path,
+                Severity::Error,
+                i.message,
+                i.fix,
+            )
+        })
+        .collect();
+    let compiled = compile::compile(&protocol, &rig);
+    for i in &compiled.issues {
+        let (file, src) = if i.in_rig {
+            (&rig_path, &rig_text)
+        } else {
+            (&protocol_path.to_path_buf(), &text)
+        };
+        diags.push(Diagnostic::at_path(
+            file,
+            src,
+            &i.path,
+            i.severity,
+            i.message.clone(),
+            i.fix.clone(),
+        ));
+    }
+    if diags.iter().any(Diagnostic::is_error) {
+        return Err(diags);
+    }
+    Ok(Loaded {
+        path: protocol_path.to_path_buf(),
+        text,
+        protocol,
+        rig_path,
+        rig_text,
+        rig,
+        compiled,
+        warnings: diags,
+    })
+}
+
+/// The simulated bench's description of this protocol's sensor, indenter and object.
+pub fn plant_spec(p: &Protocol) -> Result<PlantSpec, String> {
+    let sensor = &p.sensor;
+    let kind = sensor.kind;
+    let e = sensor
+        .elastomer
+        .clone()
+        .unwrap_or_else(|| schema::defaults::elastomer(kind));
+    let m = sensor
+        .material
+        .clone()
+        .unwrap_or_else(|| schema::defaults::material(kind));
+    let v = sensor
+        .view
+        .clone()
+        .unwrap_or_else(|| schema::defaults::view(kind));
+    let markers = match sensor
+        .markers
+        .clone()
+        .unwrap_or_else(|| schema::defaults::markers(kind))
+    {
+        Markers::Grid {
+            columns,
+            rows,
+            spacing,
+            diameter,
+        } => MarkerLayout::Grid {
+            columns,
+            rows,
+            spacing_mm: spacing.mm(),
+            diameter_mm: diameter.mm(),
+        },
+        Markers::Random { spacing, size } => MarkerLayout::Random {
+            spacing_mm: spacing.mm(),
+            size_mm: size.mm(),
+        },
+    };
+    let indenter = match &p.indenter {
+        IndenterSpec::FlatCircle { diameter } => mechanics::Indenter::FlatCircle {
+            diameter_mm: diameter.mm(),
+        },
+        IndenterSpec::FlatEllipse { major, minor } => mechanics::Indenter::FlatEllipse {
+            major_mm: major.mm(),
+            minor_mm: minor.mm(),
+        },
+        IndenterSpec::FlatRectangle { width, length } => mechanics::Indenter::FlatRectangle {
+            width_mm: width.mm(),
+            length_mm: length.mm(),
+        },
+        IndenterSpec::FlatTriangle { side } => {
+            mechanics::Indenter::FlatTriangle { side_mm: side.mm() }
+        }
+        IndenterSpec::Sphere { diameter } => mechanics::Indenter::Sphere {
+            diameter_mm: diameter.mm(),
+        },
+        IndenterSpec::Cylinder { diameter, length } => mechanics::Indenter::Cylinder {
+            diameter_mm: diameter.mm(),
+            length_mm: length.mm(),
+        },
+    };
+    let contact = mechanics::contact::Contact::new(
+        mechanics::Layer {
+            width_mm: e.width.mm(),
+            length_mm: e.length.mm(),
+            thickness_mm: e.thickness.mm(),
+        },
+        mechanics::Material {
+            youngs_modulus_mpa: m.youngs_modulus.mpa(),
+            poisson_ratio: m.poisson_ratio,
+            prony: m
+                .prony
+                .iter()
+                .map(|t| mechanics::PronyTerm {
+                    weight: t.weight,
+                    tau_s: t.tau.s(),
+                })
+                .collect(),
+            friction: m.friction,
+        },
+        indenter,
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(PlantSpec {
+        contact,
+        markers,
+        view_width_mm: v.width.mm(),
+        view_height_mm: v.height.mm(),
+        object_mass_g: p.object.as_ref().map(|o| o.mass.g()),
+    })
+}

@@ -1,0 +1,73 @@
+//! Contact mechanics and viscoelasticity of the GelSight elastomer.
+//!
+//! gelrig needs one physical model in two places: the simulated bench (so a dry run
+//! produces the forces and marker fields a real bench would) and the analysis core (which
+//! fits measured fields against reference fields, thesis §4.3–4.4). Keeping that model here,
+//! pure and deterministic, means both sides agree by construction and the model can be tested
+//! against closed-form oracles (`../shared/specs/mechanics.md` §5) without any device or file.
+//!
+//! Units throughout: millimetres, newtons, seconds, degrees where named `_deg` (radians
+//! otherwise), and moduli in MPa (= N/mm²), so a force comes out in N without conversion.
+//!
+//! Modules:
+//! - [`geometry`]: the elastomer layer, its material, and the indenter shapes of the thesis.
+//! - [`viscoelastic`]: Prony series (generalised Maxwell) with the exact exponential update.
+//! - [`contact`]: quasistatic normal, tangential and torsional contact laws on a bonded layer.
+//! - [`field`]: in-plane surface displacement fields under normal, shear and torsional load.
+
+pub mod contact;
+pub mod field;
+pub mod geometry;
+pub mod viscoelastic;
+
+pub use geometry::{Indenter, Layer, Material};
+pub use viscoelastic::{Prony, PronyState, PronyTerm};
+
+/// Why a mechanics computation refused its input.
+///
+/// The plant and the analysis core pass user-written parameters through here, so bad values
+/// surface as errors with the offending quantity, never as NaN forces.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MechanicsError {
+    /// A parameter is outside its physical range (name, value, the allowed range).
+    OutOfRange {
+        /// Parameter name with its unit, e.g. `thickness_mm`.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// The allowed range, in words.
+        allowed: &'static str,
+    },
+}
+
+impl std::fmt::Display for MechanicsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MechanicsError::OutOfRange {
+                name,
+                value,
+                allowed,
+            } => write!(f, "{name} = {value} is outside its range ({allowed})"),
+        }
+    }
+}
+
+impl std::error::Error for MechanicsError {}
+
+/// Checks that `value` is finite and within `[lo, hi]` (inclusive ends chosen by caller).
+pub(crate) fn check_range(
+    name: &'static str,
+    value: f64,
+    ok: bool,
+    allowed: &'static str,
+) -> Result<(), MechanicsError> {
+    if value.is_finite() && ok {
+        Ok(())
+    } else {
+        Err(MechanicsError::OutOfRange {
+            name,
+            value,
+            allowed,
+        })
+    }
+}

@@ -1,0 +1,399 @@
+//! The rig file: which device plays which role on a bench.
+//!
+//! A protocol names roles (`normal`, `shear`, `rotation`, `lift`, `grip`, force, camera);
+//! a rig file in `protocols/rigs/` binds each role to a driver with its travel, speed and
+//! resolution. Keeping the two apart lets one protocol run on the simulated bench in CI and
+//! on the real bench in the lab by changing `--rig` only.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::device::ForceRange;
+use crate::units::{AxisQuantity, AxisSpeed, AxisUnit, Force, Frequency, Length};
+
+/// The part an axis plays on the bench.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize, JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisRole {
+    /// Presses the indenter into the elastomer (thesis §3.3, vertical micrometer).
+    Normal,
+    /// Moves the indenter along the elastomer surface (horizontal micrometer).
+    Shear,
+    /// Rotates the sensor about its normal (the portable rig's tripod joint, §6.2.3).
+    Rotation,
+    /// Lifts a grasped object (the jig's vertical rail, §6.3.1).
+    Lift,
+    /// Closes the grasp onto the object (the jig's horizontal rail).
+    Grip,
+}
+
+impl AxisRole {
+    /// All roles, in display order.
+    pub const ALL: [AxisRole; 5] = [
+        AxisRole::Normal,
+        AxisRole::Shear,
+        AxisRole::Rotation,
+        AxisRole::Lift,
+        AxisRole::Grip,
+    ];
+
+    /// The role's name as written in YAML.
+    pub fn name(self) -> &'static str {
+        match self {
+            AxisRole::Normal => "normal",
+            AxisRole::Shear => "shear",
+            AxisRole::Rotation => "rotation",
+            AxisRole::Lift => "lift",
+            AxisRole::Grip => "grip",
+        }
+    }
+
+    /// Roles that press into the elastomer, whose depth must stay below its thickness.
+    pub fn presses(self) -> bool {
+        matches!(self, AxisRole::Normal | AxisRole::Grip)
+    }
+}
+
+impl fmt::Display for AxisRole {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A rig file.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RigConfig {
+    /// Short name shown in run manifests.
+    pub name: String,
+    /// What bench this is.
+    #[serde(default)]
+    pub description: String,
+    /// Stage axes by role.
+    #[serde(default)]
+    pub axes: BTreeMap<AxisRole, AxisConfig>,
+    /// The force/torque sensor.
+    #[serde(default)]
+    pub force: Option<ForceConfig>,
+    /// The camera looking at the elastomer.
+    #[serde(default)]
+    pub camera: Option<CameraConfig>,
+    /// What applies external disturbances to a grasped object.
+    #[serde(default)]
+    pub disturber: Option<DisturberConfig>,
+    /// Geometry of the simulated bench; required when any device is simulated.
+    #[serde(default)]
+    pub sim: Option<SimConfig>,
+}
+
+/// One stage axis.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AxisConfig {
+    /// Which driver talks to it.
+    pub driver: AxisDriver,
+    /// Travel limits `[min, max]`: mm for a linear axis, deg for a rotary one. The unit
+    /// written here decides the axis unit.
+    pub travel: [AxisQuantity; 2],
+    /// Fastest move the axis makes.
+    pub max_speed: AxisSpeed,
+    /// Smallest position increment (0.002 mm for the thesis's micrometer stages).
+    pub resolution: AxisQuantity,
+    /// How often to poll position while moving (default 20 Hz).
+    #[serde(default)]
+    pub poll_rate: Option<Frequency>,
+}
+
+impl AxisConfig {
+    /// mm or deg, from the unit of `travel`.
+    pub fn unit(&self) -> AxisUnit {
+        self.travel[0].natural_unit()
+    }
+
+    /// Travel limits in the axis unit (percentages are rejected by [`RigConfig::check`]).
+    pub fn travel(&self) -> (f64, f64) {
+        (self.travel[0].raw(), self.travel[1].raw())
+    }
+
+    /// Position poll rate in Hz.
+    pub fn poll_rate_hz(&self) -> f64 {
+        self.poll_rate.map(|f| f.hz()).unwrap_or(20.0)
+    }
+}
+
+/// Axis drivers available in this build.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum AxisDriver {
+    /// The in-process simulated stage (travel, speed, resolution, reference state).
+    Sim,
+}
+
+/// The force/torque sensor.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ForceConfig {
+    /// Which driver talks to it.
+    pub driver: ForceDriver,
+    /// Sensor model, which fixes its ranges.
+    #[serde(default)]
+    pub model: ForceModel,
+    /// Highest rate the sensor delivers samples at (default 1 kHz).
+    #[serde(default)]
+    pub max_rate: Option<Frequency>,
+}
+
+/// Force sensor drivers available in this build.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ForceDriver {
+    /// The in-process simulated Nano17 reading the simulated elastomer.
+    Sim,
+}
+
+/// Force/torque sensor models with known ranges.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ForceModel {
+    /// ATI Nano17: 70 N axial, 50 N tangential, 500 N·mm.
+    #[default]
+    Nano17,
+}
+
+impl ForceModel {
+    /// Ranges and resolution of the model.
+    pub fn range(self) -> ForceRange {
+        match self {
+            ForceModel::Nano17 => ForceRange::NANO17,
+        }
+    }
+
+    /// Name for messages and manifests.
+    pub fn name(self) -> &'static str {
+        match self {
+            ForceModel::Nano17 => "ATI Nano17",
+        }
+    }
+}
+
+/// The camera.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CameraConfig {
+    /// Which driver talks to it.
+    pub driver: CameraDriver,
+    /// Frame width in pixels.
+    pub width: u32,
+    /// Frame height in pixels.
+    pub height: u32,
+    /// Frame rate.
+    pub fps: Frequency,
+}
+
+/// Camera drivers available in this build.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum CameraDriver {
+    /// Renders the simulated elastomer's markers.
+    Sim,
+}
+
+/// What applies disturbances to a grasped object.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DisturberConfig {
+    /// Which driver applies it.
+    pub driver: DisturberDriver,
+}
+
+/// Disturbance drivers available in this build.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum DisturberDriver {
+    /// Adds the load to the simulated plant.
+    Sim,
+}
+
+/// Geometry of the simulated bench.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SimConfig {
+    /// Normal-axis position at which the indenter touches the elastomer.
+    pub normal_contact: Length,
+    /// Grip-axis position at which the grasp touches the object.
+    #[serde(default)]
+    pub grip_contact: Option<Length>,
+    /// Largest offset the simulated force sensor reads before a tare (drawn per seed).
+    #[serde(default)]
+    pub force_bias: Option<Force>,
+    /// Add sensor noise at the sensor's resolution (default true).
+    #[serde(default)]
+    pub noise: Option<bool>,
+}
+
+/// One segment of a path into a YAML document, to locate a value for an error message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PathSeg {
+    /// A mapping key.
+    Key(String),
+    /// A sequence index.
+    Index(usize),
+}
+
+/// A path into a YAML document, e.g. `sequence[3].stepped.to`.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct YamlPath(pub Vec<PathSeg>);
+
+impl YamlPath {
+    /// The root.
+    pub fn root() -> Self {
+        Self(Vec::new())
+    }
+    /// This path extended by a key.
+    pub fn key(&self, k: &str) -> Self {
+        let mut p = self.clone();
+        p.0.push(PathSeg::Key(k.to_string()));
+        p
+    }
+    /// This path extended by an index.
+    pub fn index(&self, i: usize) -> Self {
+        let mut p = self.clone();
+        p.0.push(PathSeg::Index(i));
+        p
+    }
+}
+
+impl fmt::Display for YamlPath {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, seg) in self.0.iter().enumerate() {
+            match seg {
+                PathSeg::Key(k) if i == 0 => write!(f, "{k}")?,
+                PathSeg::Key(k) => write!(f, ".{k}")?,
+                PathSeg::Index(n) => write!(f, "[{n}]")?,
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A problem found in a configuration after it parsed: where, what, and the fix.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigIssue {
+    /// Where in the file.
+    pub path: YamlPath,
+    /// What is wrong.
+    pub message: String,
+    /// How to fix it.
+    pub fix: String,
+}
+
+impl RigConfig {
+    /// Parses a rig file.
+    pub fn from_yaml_str(text: &str) -> Result<Self, serde_yaml::Error> {
+        serde_yaml::from_str(text)
+    }
+
+    /// Checks what parsing cannot: units consistent per axis, limits ordered, sim geometry
+    /// present where a simulator needs it.
+    pub fn check(&self) -> Vec<ConfigIssue> {
+        let mut issues = Vec::new();
+        for (role, axis) in &self.axes {
+            let at = YamlPath::root().key("axes").key(role.name());
+            let unit = axis.unit();
+            for (i, q) in axis.travel.iter().enumerate() {
+                if matches!(q, AxisQuantity::Percent(_)) || q.natural_unit() != unit {
+                    issues.push(ConfigIssue {
+                        path: at.key("travel").index(i),
+                        message: format!(
+                            "travel limit `{q}` does not match the axis unit {}",
+                            unit.symbol()
+                        ),
+                        fix: format!("write both travel limits in {}", unit.symbol()),
+                    });
+                }
+            }
+            let (lo, hi) = axis.travel();
+            if lo >= hi {
+                issues.push(ConfigIssue {
+                    path: at.key("travel"),
+                    message: format!("travel [{lo}, {hi}] is empty"),
+                    fix: "write the travel as [min, max] with min < max".into(),
+                });
+            }
+            if axis.max_speed.unit != unit || axis.max_speed.value <= 0.0 {
+                issues.push(ConfigIssue {
+                    path: at.key("max_speed"),
+                    message: format!(
+                        "max_speed `{}` is not a positive {}/s speed",
+                        axis.max_speed,
+                        unit.symbol()
+                    ),
+                    fix: format!("write a positive speed in {}/s", unit.symbol()),
+                });
+            }
+            if matches!(axis.resolution, AxisQuantity::Percent(_))
+                || axis.resolution.natural_unit() != unit
+                || axis.resolution.raw() <= 0.0
+            {
+                issues.push(ConfigIssue {
+                    path: at.key("resolution"),
+                    message: format!(
+                        "resolution `{}` is not a positive {}",
+                        axis.resolution,
+                        unit.symbol()
+                    ),
+                    fix: format!(
+                        "write the stage's smallest step in {}, e.g. `0.002 mm`",
+                        unit.symbol()
+                    ),
+                });
+            }
+            if axis.poll_rate.is_some_and(|r| r.hz() <= 0.0) {
+                issues.push(ConfigIssue {
+                    path: at.key("poll_rate"),
+                    message: "poll_rate must be positive".into(),
+                    fix: "write e.g. `20 Hz`".into(),
+                });
+            }
+        }
+        if let Some(cam) = &self.camera
+            && (cam.width == 0 || cam.height == 0 || cam.fps.hz() <= 0.0)
+        {
+            issues.push(ConfigIssue {
+                path: YamlPath::root().key("camera"),
+                message: "camera width, height and fps must be positive".into(),
+                fix: "write e.g. `width: 640, height: 480, fps: 25 Hz`".into(),
+            });
+        }
+        if self.uses_sim() && self.sim.is_none() {
+            issues.push(ConfigIssue {
+                path: YamlPath::root().key("name"),
+                message: "this rig has simulated devices but no `sim:` section".into(),
+                fix: "add `sim: {normal_contact: 10 mm}` giving the simulated bench's geometry"
+                    .into(),
+            });
+        }
+        issues
+    }
+
+    /// True when any device is simulated in-process.
+    pub fn uses_sim(&self) -> bool {
+        self.axes
+            .values()
+            .any(|a| matches!(a.driver, AxisDriver::Sim))
+            || self
+                .force
+                .as_ref()
+                .is_some_and(|f| matches!(f.driver, ForceDriver::Sim))
+            || self
+                .camera
+                .as_ref()
+                .is_some_and(|c| matches!(c.driver, CameraDriver::Sim))
+            || self.disturber.is_some()
+    }
+}

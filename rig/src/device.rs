@@ -1,0 +1,247 @@
+//! The device boundary: one trait per kind of device a GelSight bench has.
+//!
+//! The runner only ever sees these traits, so the same protocol drives a simulated bench,
+//! a simulator speaking a real wire protocol, or real hardware. Methods are async because
+//! real devices answer over serial lines and sockets; they take `&mut self` because a
+//! device is owned by one runner at a time.
+
+use async_trait::async_trait;
+use serde::Serialize;
+
+use crate::RigError;
+use crate::units::AxisUnit;
+
+/// What a runner needs to know about an axis before moving it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AxisInfo {
+    /// Role the axis plays on this bench (`normal`, `shear`, …).
+    pub role: String,
+    /// mm or deg.
+    pub unit: AxisUnit,
+    /// Travel limits in the axis unit.
+    pub travel_min: f64,
+    /// Travel limits in the axis unit.
+    pub travel_max: f64,
+    /// Maximum speed in unit/s.
+    pub max_speed: f64,
+    /// Smallest position increment in the axis unit.
+    pub resolution: f64,
+    /// Device identity (model, serial, firmware) for the run manifest.
+    pub identity: String,
+}
+
+/// A snapshot of an axis.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AxisStatus {
+    /// Current position in the axis unit.
+    pub position: f64,
+    /// True while a move or homing is in progress.
+    pub moving: bool,
+    /// True once homed; moves are refused before.
+    pub referenced: bool,
+}
+
+/// A motorised (or operator-turned) stage axis.
+#[async_trait]
+pub trait Axis: Send {
+    /// Static description.
+    fn info(&self) -> &AxisInfo;
+    /// Starts homing; completion shows as `!moving && referenced` in [`Axis::status`].
+    async fn home(&mut self) -> Result<(), RigError>;
+    /// Starts a move to `target` at `speed`; returns once the device accepted it.
+    async fn move_to(&mut self, target: f64, speed: f64) -> Result<(), RigError>;
+    /// Reads position and motion state.
+    async fn status(&mut self) -> Result<AxisStatus, RigError>;
+    /// Stops any motion as fast as the device allows.
+    async fn stop(&mut self) -> Result<(), RigError>;
+}
+
+/// Force in N and torque in N·mm, as the sensor reports them: the load the indenter applies
+/// to the elastomer, with z into the gel and x along the shear axis.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Wrench {
+    /// Force along x (shear axis), N.
+    pub fx_n: f64,
+    /// Force along y, N.
+    pub fy_n: f64,
+    /// Force along z (into the gel), N.
+    pub fz_n: f64,
+    /// Torque about x, N·mm.
+    pub tx_nmm: f64,
+    /// Torque about y, N·mm.
+    pub ty_nmm: f64,
+    /// Torque about z (normal axis), N·mm.
+    pub tz_nmm: f64,
+}
+
+impl Wrench {
+    /// Component-wise difference (used for tare).
+    pub fn minus(&self, o: &Wrench) -> Wrench {
+        Wrench {
+            fx_n: self.fx_n - o.fx_n,
+            fy_n: self.fy_n - o.fy_n,
+            fz_n: self.fz_n - o.fz_n,
+            tx_nmm: self.tx_nmm - o.tx_nmm,
+            ty_nmm: self.ty_nmm - o.ty_nmm,
+            tz_nmm: self.tz_nmm - o.tz_nmm,
+        }
+    }
+
+    /// Component-wise mean of `ws` (zero for an empty slice).
+    pub fn mean(ws: impl IntoIterator<Item = Wrench>) -> Wrench {
+        let mut sum = [0.0; 6];
+        let mut n = 0usize;
+        for w in ws {
+            for (s, v) in sum.iter_mut().zip(w.as_array()) {
+                *s += v;
+            }
+            n += 1;
+        }
+        let k = if n == 0 { 0.0 } else { 1.0 / n as f64 };
+        Wrench::from_array(sum.map(|s| s * k))
+    }
+
+    /// `[fx, fy, fz, tx, ty, tz]`.
+    pub fn as_array(&self) -> [f64; 6] {
+        [
+            self.fx_n,
+            self.fy_n,
+            self.fz_n,
+            self.tx_nmm,
+            self.ty_nmm,
+            self.tz_nmm,
+        ]
+    }
+
+    /// Inverse of [`Wrench::as_array`].
+    pub fn from_array(a: [f64; 6]) -> Wrench {
+        Wrench {
+            fx_n: a[0],
+            fy_n: a[1],
+            fz_n: a[2],
+            tx_nmm: a[3],
+            ty_nmm: a[4],
+            tz_nmm: a[5],
+        }
+    }
+}
+
+/// Status bit: some channel is beyond the sensor's calibrated range (the reading is clipped).
+pub const STATUS_SATURATED: u32 = 1 << 30;
+
+/// One force/torque sample.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ForceSample {
+    /// Host time of the sample on the run's timebase.
+    pub t_ns: u64,
+    /// The sensor's own sample counter (Net F/T `ft_sequence`; the simulator's count).
+    pub ft_seq: u64,
+    /// The reading, before any tare.
+    pub wrench: Wrench,
+    /// Device status bits; see [`STATUS_SATURATED`].
+    pub status: u32,
+}
+
+/// Sensing ranges and resolution of a force/torque sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ForceRange {
+    /// Axial (z) force range, N.
+    pub fz_n: f64,
+    /// Tangential (x, y) force range, N.
+    pub fxy_n: f64,
+    /// Torque range, N·mm.
+    pub torque_nmm: f64,
+    /// Force resolution, N.
+    pub force_resolution_n: f64,
+    /// Torque resolution, N·mm.
+    pub torque_resolution_nmm: f64,
+}
+
+impl ForceRange {
+    /// ATI Nano17 (SI-50-0.5 calibration): 70 N axial, 50 N tangential, 500 N·mm, resolution
+    /// 1/80 N and 1/16 N·mm (thesis §3.3).
+    pub const NANO17: ForceRange = ForceRange {
+        fz_n: 70.0,
+        fxy_n: 50.0,
+        torque_nmm: 500.0,
+        force_resolution_n: 1.0 / 80.0,
+        torque_resolution_nmm: 1.0 / 16.0,
+    };
+}
+
+/// What a runner needs to know about a force sensor.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ForceInfo {
+    /// Model name.
+    pub model: String,
+    /// Ranges and resolution.
+    pub range: ForceRange,
+    /// Highest sample rate the device delivers, Hz.
+    pub max_rate_hz: f64,
+    /// Identity (serial, calibration) for the run manifest.
+    pub identity: String,
+}
+
+/// A six-axis force/torque sensor.
+#[async_trait]
+pub trait ForceSensor: Send {
+    /// Static description.
+    fn info(&self) -> &ForceInfo;
+    /// The most recent sample.
+    async fn read(&mut self) -> Result<ForceSample, RigError>;
+}
+
+/// One RGB frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// Host time of the exposure midpoint on the run's timebase.
+    pub t_ns: u64,
+    /// The camera's frame counter; gaps mean dropped frames.
+    pub seq: u64,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major RGB8 pixels, `width * height * 3` bytes.
+    pub rgb: Vec<u8>,
+    /// Exact marker centres in pixels, when the camera is simulated (ground truth for
+    /// tracking tests); `None` from a real camera.
+    pub truth_px: Option<Vec<[f64; 2]>>,
+}
+
+/// What a runner needs to know about a camera.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CameraInfo {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Frame rate, Hz.
+    pub fps: f64,
+    /// Identity for the run manifest.
+    pub identity: String,
+}
+
+/// A camera looking at the elastomer.
+#[async_trait]
+pub trait Camera: Send {
+    /// Static description.
+    fn info(&self) -> &CameraInfo;
+    /// Waits for and returns the next frame.
+    async fn capture(&mut self) -> Result<Frame, RigError>;
+}
+
+/// An external disturbance applied to a grasped object (thesis §6.3.2: the can swung by
+/// hand). On the simulated bench it is a load added to the plant; on a real bench an
+/// operator prompt or an actuator.
+#[async_trait]
+pub trait Disturber: Send {
+    /// Applies a sinusoidal disturbance of the given amplitudes starting now.
+    async fn apply(
+        &mut self,
+        force_y_n: f64,
+        torque_z_nmm: f64,
+        frequency_hz: f64,
+        duration_s: f64,
+    ) -> Result<(), RigError>;
+}

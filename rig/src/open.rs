@@ -1,0 +1,215 @@
+//! Opening a bench: only the devices a protocol uses.
+//!
+//! A protocol without a camera must not open one (it may be unplugged, or in use by another
+//! program), so the caller says which roles it needs and `open` touches nothing else.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::{Arc, Mutex};
+
+use serde::Serialize;
+
+use crate::config::{AxisDriver, AxisRole, CameraDriver, DisturberDriver, ForceDriver, RigConfig};
+use crate::device::{Axis, AxisInfo, Camera, CameraInfo, Disturber, ForceInfo, ForceSensor};
+use crate::sim::plant::{BenchGeometry, Plant};
+use crate::sim::{PlantSpec, SimAxis, SimCamera, SimDisturber, SimForceSensor};
+use crate::{Clock, RigError};
+
+/// Which devices to open.
+#[derive(Debug, Clone)]
+pub struct OpenRequest {
+    /// Axis roles the protocol moves or reads.
+    pub axes: BTreeSet<AxisRole>,
+    /// Whether the force sensor is needed.
+    pub force: bool,
+    /// Whether the camera is needed.
+    pub camera: bool,
+    /// Whether a disturbance source is needed.
+    pub disturber: bool,
+    /// Physical description for simulated devices (required if any opened device is one).
+    pub plant: Option<PlantSpec>,
+    /// The run's clock.
+    pub clock: Clock,
+    /// Seed for everything random in simulated devices.
+    pub seed: u64,
+}
+
+/// Identity of an opened device, for the run manifest.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OpenedDevice {
+    /// Role on the bench (`normal`, `force`, `camera`, …).
+    pub role: String,
+    /// Driver and identity string.
+    pub identity: String,
+}
+
+/// The opened devices.
+pub struct Rig {
+    /// Opened axes by role.
+    pub axes: BTreeMap<AxisRole, Box<dyn Axis>>,
+    /// The force sensor, if requested.
+    pub force: Option<Box<dyn ForceSensor>>,
+    /// The camera, if requested.
+    pub camera: Option<Box<dyn Camera>>,
+    /// The disturbance source, if requested.
+    pub disturber: Option<Box<dyn Disturber>>,
+    /// What was opened, in order.
+    pub opened: Vec<OpenedDevice>,
+}
+
+fn missing(what: &str, rig: &RigConfig) -> RigError {
+    RigError::Unsupported {
+        device: what.to_string(),
+        detail: format!("rig `{}` binds no {what}; add it to the rig file", rig.name),
+    }
+}
+
+/// Opens the requested devices of `config`.
+pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError> {
+    let mut plant: Option<Arc<Mutex<Plant>>> = None;
+    let mut sim_plant = |what: &str| -> Result<Arc<Mutex<Plant>>, RigError> {
+        if let Some(p) = &plant {
+            return Ok(p.clone());
+        }
+        if !req.clock.is_simulated() {
+            return Err(RigError::Unsupported {
+                device: what.to_string(),
+                detail: "a simulated device needs a virtual or scaled clock".into(),
+            });
+        }
+        let spec = req.plant.clone().ok_or_else(|| RigError::Unsupported {
+            device: what.to_string(),
+            detail: "a simulated device needs the sensor and indenter description".into(),
+        })?;
+        let sim = config.sim.as_ref().ok_or_else(|| RigError::Unsupported {
+            device: what.to_string(),
+            detail: format!(
+                "rig `{}` has simulated devices but no `sim:` section",
+                config.name
+            ),
+        })?;
+        let geometry = BenchGeometry {
+            normal_contact_mm: sim.normal_contact.mm(),
+            grip_contact_mm: sim
+                .grip_contact
+                .map(|l| l.mm())
+                .unwrap_or(sim.normal_contact.mm()),
+            force_bias_n: sim.force_bias.map(|f| f.n()).unwrap_or(0.0),
+            noise: sim.noise.unwrap_or(true),
+        };
+        let p = Arc::new(Mutex::new(Plant::new(spec, geometry, req.seed)?));
+        plant = Some(p.clone());
+        Ok(p)
+    };
+
+    let mut rig = Rig {
+        axes: BTreeMap::new(),
+        force: None,
+        camera: None,
+        disturber: None,
+        opened: Vec::new(),
+    };
+    for role in &req.axes {
+        let cfg = config
+            .axes
+            .get(role)
+            .ok_or_else(|| missing(&format!("{role} axis"), config))?;
+        let (travel_min, travel_max) = cfg.travel();
+        let info = AxisInfo {
+            role: role.to_string(),
+            unit: cfg.unit(),
+            travel_min,
+            travel_max,
+            max_speed: cfg.max_speed.value,
+            resolution: cfg.resolution.raw(),
+            identity: String::new(),
+        };
+        let axis: Box<dyn Axis> = match cfg.driver {
+            AxisDriver::Sim => {
+                let p = sim_plant(&format!("{role} axis"))?;
+                let info = AxisInfo {
+                    identity: format!(
+                        "simulated stage, {} {}, travel [{travel_min}, {travel_max}]",
+                        info.resolution,
+                        info.unit.symbol()
+                    ),
+                    ..info
+                };
+                Box::new(SimAxis::new(*role, info, p, req.clock.clone()))
+            }
+        };
+        rig.opened.push(OpenedDevice {
+            role: role.to_string(),
+            identity: axis.info().identity.clone(),
+        });
+        rig.axes.insert(*role, axis);
+    }
+    if req.force {
+        let cfg = config
+            .force
+            .as_ref()
+            .ok_or_else(|| missing("force sensor", config))?;
+        let sensor: Box<dyn ForceSensor> = match cfg.driver {
+            ForceDriver::Sim => {
+                let p = sim_plant("force sensor")?;
+                let info = ForceInfo {
+                    model: cfg.model.name().into(),
+                    range: cfg.model.range(),
+                    max_rate_hz: cfg.max_rate.map(|f| f.hz()).unwrap_or(1000.0),
+                    identity: format!("simulated {} (seed {})", cfg.model.name(), req.seed),
+                };
+                Box::new(SimForceSensor::new(info, p, req.clock.clone()))
+            }
+        };
+        rig.opened.push(OpenedDevice {
+            role: "force".into(),
+            identity: sensor.info().identity.clone(),
+        });
+        rig.force = Some(sensor);
+    }
+    if req.camera {
+        let cfg = config
+            .camera
+            .as_ref()
+            .ok_or_else(|| missing("camera", config))?;
+        let camera: Box<dyn Camera> = match cfg.driver {
+            CameraDriver::Sim => {
+                let p = sim_plant("camera")?;
+                let info = CameraInfo {
+                    width: cfg.width,
+                    height: cfg.height,
+                    fps: cfg.fps.hz(),
+                    identity: format!(
+                        "simulated camera {}×{} at {} Hz",
+                        cfg.width,
+                        cfg.height,
+                        cfg.fps.hz()
+                    ),
+                };
+                Box::new(SimCamera::new(info, p, req.clock.clone()))
+            }
+        };
+        rig.opened.push(OpenedDevice {
+            role: "camera".into(),
+            identity: camera.info().identity.clone(),
+        });
+        rig.camera = Some(camera);
+    }
+    if req.disturber {
+        let cfg = config
+            .disturber
+            .as_ref()
+            .ok_or_else(|| missing("disturber", config))?;
+        let d: Box<dyn Disturber> = match cfg.driver {
+            DisturberDriver::Sim => Box::new(SimDisturber::new(
+                sim_plant("disturber")?,
+                req.clock.clone(),
+            )),
+        };
+        rig.opened.push(OpenedDevice {
+            role: "disturber".into(),
+            identity: "simulated disturbance on the grasped object".into(),
+        });
+        rig.disturber = Some(d);
+    }
+    Ok(rig)
+}

@@ -1,0 +1,65 @@
+//! A simulated camera: frames on a fixed grid of exposure times, rendered from the plant.
+
+use std::sync::{Arc, Mutex};
+
+use async_trait::async_trait;
+
+use super::plant::Plant;
+use super::render::Renderer;
+use crate::device::{Camera, CameraInfo, Frame};
+use crate::{Clock, RigError, lock};
+
+/// Delivers frames at `fps` on the run's clock, showing the markers displaced by the plant.
+pub(crate) struct SimCamera {
+    info: CameraInfo,
+    plant: Arc<Mutex<Plant>>,
+    clock: Clock,
+    period_ns: u64,
+    last_t_ns: Option<u64>,
+    renderer: Renderer,
+}
+
+impl SimCamera {
+    pub(crate) fn new(info: CameraInfo, plant: Arc<Mutex<Plant>>, clock: Clock) -> Self {
+        let renderer = Renderer::new(lock(&plant).spec(), info.width, info.height);
+        let period_ns = (1e9 / info.fps.max(1e-3)).round() as u64;
+        Self {
+            info,
+            plant,
+            clock,
+            period_ns,
+            last_t_ns: None,
+            renderer,
+        }
+    }
+}
+
+#[async_trait]
+impl Camera for SimCamera {
+    fn info(&self) -> &CameraInfo {
+        &self.info
+    }
+
+    async fn capture(&mut self) -> Result<Frame, RigError> {
+        let now = self.clock.now_ns();
+        let mut t = now.div_ceil(self.period_ns) * self.period_ns;
+        if let Some(last) = self.last_t_ns
+            && t <= last
+        {
+            t = last + self.period_ns;
+        }
+        self.clock.sleep_until_ns(t).await;
+        self.last_t_ns = Some(t);
+        let surface = lock(&self.plant).surface(t);
+        let seq = t / self.period_ns;
+        let (rgb, truth) = self.renderer.render(&surface, seq);
+        Ok(Frame {
+            t_ns: t,
+            seq,
+            width: self.info.width,
+            height: self.info.height,
+            rgb,
+            truth_px: Some(truth),
+        })
+    }
+}

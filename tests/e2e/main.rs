@@ -1,0 +1,11 @@
+//! End-to-end tests of gelrig: protocols validated, planned and dry-run on the simulated
+//! bench, through the library and through the `gelrig` binary with real signals.
+
+// Test code: panicking on a broken fixture is the point.
+#![allow(clippy::unwrap_used)]
+
+mod dry_run;
+mod plan;
+mod signals;
+mod support;
+mod validate;

@@ -1,0 +1,175 @@
+//! `gelrig plan`: the arithmetic of steps, durations, frames and data volume.
+
+use std::process::Command;
+
+use experiments::plan::{FORCE_ROW_BYTES, JOURNAL_LINE_BYTES, STEP_ROW_BYTES, plan};
+
+use crate::support::{SHIPPED, gelrig, load_ok, protocol};
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() < 1e-6 * b.abs().max(1.0)
+}
+
+#[test]
+fn box_normal_flat_arithmetic() {
+    let l = load_ok(&protocol("box-normal-flat"));
+    let p = plan(&l.protocol, &l.compiled, &l.rig);
+    assert_eq!(p.steps.len(), 20);
+    let depth_mm: Vec<f64> = (1..=10)
+        .map(|k| 0.084 * k as f64)
+        .chain((0..10).rev().map(|k| 0.084 * k as f64))
+        .collect();
+    for (s, d) in p.steps.iter().zip(&depth_mm) {
+        let shown: f64 = s.target.trim_end_matches(" mm").parse().unwrap();
+        assert!(
+            (shown - d).abs() < 1e-9,
+            "step {}: {} vs {d}",
+            s.step,
+            s.target
+        );
+    }
+    assert!(
+        p.steps[..10].iter().all(|s| s.phase == "load")
+            && p.steps[10..].iter().all(|s| s.phase == "unload")
+    );
+    // Hand count, seconds. Home: the stage may start anywhere in [0, 25] mm at 2 mm/s.
+    // Tare 2. Rapid to 9 mm at 2 mm/s: 4.5. Creep 0–2 mm at 0.05 mm/s: 0–40. Reference
+    // frame 1/25. Each step: 0.084 mm at 0.5 mm/s, 180 s settle, one frame at 25 Hz.
+    // Retract: from the contact, somewhere in [9, 11] mm, to 0 at 2 mm/s.
+    let step = 0.084 / 0.5 + 180.0 + 1.0 / 25.0;
+    let min = 0.0 + 2.0 + 4.5 + 0.0 + 0.04 + 20.0 * step + 9.0 / 2.0;
+    let max = 12.5 + 2.0 + 4.5 + 40.0 + 0.04 + 20.0 * step + 11.0 / 2.0;
+    assert!(
+        close(p.duration_s.min, min),
+        "{} vs {min}",
+        p.duration_s.min
+    );
+    assert!(
+        close(p.duration_s.max, max),
+        "{} vs {max}",
+        p.duration_s.max
+    );
+    // Each step ends one step-duration after the previous one.
+    for w in p.steps.windows(2) {
+        assert!(close(w[1].ends_s.min - w[0].ends_s.min, step));
+    }
+    assert!(close(p.frames.min, 21.0) && close(p.frames.max, 21.0));
+    // Force is recorded at 20 Hz for the whole run except the retract.
+    let recorded = |d: f64, retract: f64| 20.0 * (d - retract);
+    assert!(
+        close(p.force_rows.min, recorded(min, 4.5)),
+        "{:?}",
+        p.force_rows
+    );
+    assert!(
+        close(p.force_rows.max, recorded(max, 5.5)),
+        "{:?}",
+        p.force_rows
+    );
+    let frame_bytes = (640 * 480 * 3 + 1024) as f64;
+    let fixed =
+        (20 * STEP_ROW_BYTES + l.compiled.actions.len() as u64 * 2 * JOURNAL_LINE_BYTES) as f64;
+    let bytes_min = p.force_rows.min * FORCE_ROW_BYTES as f64 + fixed + 21.0 * frame_bytes;
+    assert!(
+        close(p.bytes.min, bytes_min),
+        "{} vs {bytes_min}",
+        p.bytes.min
+    );
+}
+
+#[test]
+fn rate_settling_widens_the_eta_by_its_bounds() {
+    let l = load_ok(&protocol("portable-normal"));
+    let p = plan(&l.protocol, &l.compiled, &l.rig);
+    assert_eq!(p.steps.len(), 12);
+    // 12 steps settling 60–120 s; the approach creeps 0–2 mm at 0.02 mm/s (0–100 s);
+    // homing 0–12.5 s; retract from [9, 11] mm: 4.5–5.5 s.
+    let spread = p.duration_s.max - p.duration_s.min;
+    assert!(close(spread, 12.0 * 60.0 + 100.0 + 12.5 + 1.0), "{spread}");
+}
+
+#[test]
+fn grasp_trials_repeat_with_their_own_trial_numbers() {
+    let l = load_ok(&protocol("lifting-can"));
+    let p = plan(&l.protocol, &l.compiled, &l.rig);
+    assert_eq!(p.steps.len(), 50);
+    for (i, chunk) in p.steps.chunks(5).enumerate() {
+        let labels: Vec<&str> = chunk.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(labels, ["lift", "hold", "disturb", "lower", "release"]);
+        assert!(chunk.iter().all(|s| s.trial == i as u32 + 1));
+    }
+    assert_eq!(p.frames.max, 0.0, "the can trials use no camera");
+    // Axes at 10 Hz for two axes and force at 50 Hz, over the same recorded time.
+    assert!(
+        close(p.axes_rows.min, 0.4 * p.force_rows.min),
+        "{:?} {:?}",
+        p.axes_rows,
+        p.force_rows
+    );
+    assert!(
+        close(p.axes_rows.max, 0.4 * p.force_rows.max),
+        "{:?} {:?}",
+        p.axes_rows,
+        p.force_rows
+    );
+    let hold = 5.0 + 2.0; // hold + disturb
+    let lift = 20.0 / 10.0;
+    assert!(p.force_rows.min >= 50.0 * 10.0 * (hold + 2.0 * lift));
+}
+
+#[test]
+fn every_shipped_protocol_plans_consistently() {
+    for name in SHIPPED {
+        let l = load_ok(&protocol(name));
+        let p = plan(&l.protocol, &l.compiled, &l.rig);
+        assert_eq!(p.steps.len() as u32, l.compiled.steps, "{name}");
+        assert!(
+            p.duration_s.min > 0.0 && p.duration_s.min <= p.duration_s.max,
+            "{name}"
+        );
+        for w in p.steps.windows(2) {
+            assert!(
+                w[0].ends_s.min <= w[1].ends_s.min && w[0].ends_s.max <= w[1].ends_s.max,
+                "{name}"
+            );
+        }
+        let frames: u32 = p.steps.iter().map(|s| s.frames).sum::<u32>()
+            + l.protocol
+                .sequence
+                .iter()
+                .filter_map(|b| match b {
+                    experiments::protocol::schema::Block::Approach(a) => Some(a.reference_frames),
+                    _ => None,
+                })
+                .sum::<u32>();
+        assert!(
+            close(p.frames.min, frames as f64),
+            "{name}: {:?} vs {frames}",
+            p.frames
+        );
+    }
+}
+
+#[test]
+fn cli_prints_the_plan() {
+    let out = Command::new(gelrig())
+        .args(["plan"])
+        .arg(protocol("box-normal-flat"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("steps        20"), "{text}");
+    assert!(
+        text.contains("duration     1 h 00 min 15 s – 1 h 01 min 09 s"),
+        "{text}"
+    );
+    assert!(text.contains("frames       21"), "{text}");
+    let json = Command::new(gelrig())
+        .args(["plan", "--json"])
+        .arg(protocol("box-normal-flat"))
+        .output()
+        .unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
+    assert_eq!(v["steps"].as_array().map(|a| a.len()), Some(20));
+}

@@ -1,0 +1,181 @@
+//! Paths, the `gelrig` binary, in-process runs and run-directory readers.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+use experiments::plan::{Plan, plan};
+use experiments::progress::ProgressMode;
+use experiments::protocol::{Loaded, load};
+use experiments::runner::{Cancel, RunOutcome, RunRequest, run};
+use rig::ClockMode;
+
+/// The workspace root.
+pub(crate) fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+/// A shipped protocol by name.
+pub(crate) fn protocol(name: &str) -> PathBuf {
+    root().join("protocols").join(format!("{name}.yaml"))
+}
+
+/// The simulated rig file.
+pub(crate) fn sim_rig() -> PathBuf {
+    root().join("protocols/rigs/sim.yaml")
+}
+
+/// Every shipped protocol's name.
+pub(crate) const SHIPPED: [&str; 10] = [
+    "box-normal-flat",
+    "box-shear-flat",
+    "box-normal-sphere",
+    "box-shear-sphere",
+    "box-normal-ellipse",
+    "box-normal-rectangle",
+    "portable-normal",
+    "portable-shear",
+    "portable-rotation",
+    "lifting-can",
+];
+
+/// Path of the `gelrig` binary of this build profile, built (or brought up to date) once
+/// per test process so the tests never run a stale binary.
+pub(crate) fn gelrig() -> PathBuf {
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| {
+        let exe = std::env::current_exe().unwrap();
+        // target/<profile>/deps/e2e-… → target/<profile>
+        let profile_dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
+        let release = profile_dir.file_name().is_some_and(|n| n == "release");
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let mut cmd = Command::new(cargo);
+        cmd.current_dir(root())
+            .args(["build", "-q", "-p", "experiments", "--bin", "gelrig"]);
+        if release {
+            cmd.arg("--release");
+        }
+        let status = cmd.status().expect("cargo runs");
+        assert!(status.success(), "building gelrig failed");
+        profile_dir.join("gelrig")
+    })
+    .clone()
+}
+
+/// `gelrig runs DIR`'s stdout.
+pub(crate) fn runs_listing(dir: &Path) -> String {
+    let out = Command::new(gelrig())
+        .arg("runs")
+        .arg(dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Loads a protocol file against the simulated rig, panicking with the diagnostics.
+pub(crate) fn load_ok(path: &Path) -> Loaded {
+    match load(path, Some(&sim_rig())) {
+        Ok(l) => l,
+        Err(diags) => panic!(
+            "{} does not load:\n{}",
+            path.display(),
+            diags
+                .iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join("\n")
+        ),
+    }
+}
+
+/// Writes `text` as a protocol file in `dir` and loads it against the simulated rig.
+pub(crate) fn load_text(dir: &Path, text: &str) -> Result<Loaded, Vec<experiments::Diagnostic>> {
+    let p = dir.join("protocol.yaml");
+    std::fs::write(&p, text).unwrap();
+    load(&p, Some(&sim_rig()))
+}
+
+/// A shipped protocol's text.
+pub(crate) fn shipped_text(name: &str) -> String {
+    std::fs::read_to_string(protocol(name)).unwrap()
+}
+
+/// Runs a loaded protocol in-process on virtual time, with `cancel_after_s` of run time
+/// before an interrupt (if given).
+pub(crate) fn run_virtual(
+    loaded: &Loaded,
+    out: &Path,
+    seed: u64,
+    cancel_after_s: Option<f64>,
+) -> (RunOutcome, Plan) {
+    let plan = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .start_paused(true)
+        .build()
+        .unwrap();
+    let cancel = Cancel::new();
+    let outcome = rt.block_on(async {
+        if let Some(s) = cancel_after_s {
+            let c = cancel.clone();
+            tokio::spawn(async move {
+                tokio::time::sleep(std::time::Duration::from_secs_f64(s)).await;
+                c.interrupt();
+            });
+        }
+        run(
+            RunRequest {
+                loaded,
+                plan: &plan,
+                out: out.to_path_buf(),
+                seed,
+                clock: ClockMode::Virtual,
+                progress: ProgressMode::Quiet,
+            },
+            cancel,
+        )
+        .await
+        .unwrap()
+    });
+    (outcome, plan)
+}
+
+/// Rows of a CSV file as maps from column to text.
+pub(crate) fn csv_rows(path: &Path) -> Vec<std::collections::BTreeMap<String, String>> {
+    let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let headers = r.headers().unwrap().clone();
+    r.records()
+        .map(|rec| {
+            let rec = rec.unwrap();
+            headers
+                .iter()
+                .map(str::to_string)
+                .zip(rec.iter().map(str::to_string))
+                .collect()
+        })
+        .collect()
+}
+
+/// A numeric column of CSV rows.
+pub(crate) fn col(rows: &[std::collections::BTreeMap<String, String>], name: &str) -> Vec<f64> {
+    rows.iter()
+        .map(|r| {
+            r[name]
+                .parse::<f64>()
+                .unwrap_or_else(|e| panic!("{name} = {:?}: {e}", r[name]))
+        })
+        .collect()
+}
+
+/// The run manifest.
+pub(crate) fn manifest(dir: &Path) -> experiments::record::Manifest {
+    experiments::record::read_manifest(dir).unwrap()
+}

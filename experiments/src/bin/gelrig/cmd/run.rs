@@ -104,7 +104,7 @@ impl Cmd {
             )
             .await
         });
-        let outcome = outcome.context("creating the run directory")?;
+        let outcome = outcome.context("recording the run")?;
         println!("{}", outcome.dir.display());
         let status = outcome.status.name();
         match &outcome.message {

@@ -10,5 +10,7 @@
 //! directory from years ago, and is tested against the simulator's known truth. It depends
 //! only on `mechanics`, for the reference fields it fits against.
 //!
-//! Status: the spine (issue 2) records the data this crate will consume; the tracking and
-//! report issues fill it in.
+//! Modules:
+//! - [`relaxation`]: F∞ and τ of a step's relaxation by variable projection; Aitken.
+
+pub mod relaxation;

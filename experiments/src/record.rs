@@ -16,7 +16,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use rig::{ForceSample, Frame, Wrench};
+use rig::{ForceSample, Frame, SimTruth, Wrench};
 use serde::{Deserialize, Serialize};
 
 /// Failure to record.
@@ -265,6 +265,34 @@ struct AxesRow<'a> {
 }
 
 #[derive(Serialize)]
+struct MarkerTruthRow {
+    frame: u64,
+    id: usize,
+    x_px: f64,
+    y_px: f64,
+}
+
+#[derive(Serialize)]
+struct SimStepRow {
+    step: u32,
+    trial: u32,
+    depth_mm: f64,
+    fx_n: f64,
+    fy_n: f64,
+    fz_n: f64,
+    tz_nmm: f64,
+    fx_eq_n: f64,
+    fz_eq_n: f64,
+    tz_eq_nmm: f64,
+    contact_radius_mm: f64,
+    shear_stick_fraction: Option<f64>,
+    twist_stick_fraction: Option<f64>,
+    shear_slips: u32,
+    twist_slips: u32,
+    object_slips: u32,
+}
+
+#[derive(Serialize)]
 struct FrameRow<'a> {
     frame: u64,
     t_ns: u64,
@@ -339,6 +367,8 @@ pub struct Recorder {
     force: Option<Csv>,
     axes: Option<Csv>,
     frames: Option<Csv>,
+    sim_steps: Option<Csv>,
+    sim_markers: Option<Csv>,
     frame_count: u64,
     _lock: File,
 }
@@ -428,6 +458,8 @@ impl Recorder {
             force: None,
             axes: None,
             frames: None,
+            sim_steps: None,
+            sim_markers: None,
             frame_count: 0,
             _lock: lock,
         };
@@ -571,8 +603,55 @@ impl Recorder {
         if let Some(w) = &mut self.frames {
             w.row(&row)?;
         }
+        if let Some(truth) = &frame.truth_px {
+            if self.sim_markers.is_none() {
+                self.sim_markers = Some(Csv::create(self.dir.join("sim_markers.csv"))?);
+            }
+            if let Some(w) = &mut self.sim_markers {
+                for (id, [x, y]) in truth.iter().enumerate() {
+                    w.row(&MarkerTruthRow {
+                        frame: n,
+                        id,
+                        x_px: round6(*x),
+                        y_px: round6(*y),
+                    })?;
+                }
+            }
+        }
         self.frame_count += 1;
         Ok(n)
+    }
+
+    /// Appends the simulator's ground truth at the end of a step to `sim_steps.csv`.
+    pub fn sim_truth(&mut self, step: u32, trial: u32, t: &SimTruth) -> Result<(), RecordError> {
+        if self.sim_steps.is_none() {
+            self.sim_steps = Some(Csv::create(self.dir.join("sim_steps.csv"))?);
+        }
+        let row = SimStepRow {
+            step,
+            trial,
+            depth_mm: round6(t.depth_mm),
+            fx_n: round6(t.wrench.fx_n),
+            fy_n: round6(t.wrench.fy_n),
+            fz_n: round6(t.wrench.fz_n),
+            tz_nmm: round6(t.wrench.tz_nmm),
+            fx_eq_n: round6(t.equilibrium.fx_n),
+            fz_eq_n: round6(t.equilibrium.fz_n),
+            tz_eq_nmm: round6(t.equilibrium.tz_nmm),
+            contact_radius_mm: round6(t.contact_radius_mm),
+            shear_stick_fraction: t.shear_stick_fraction.map(round6),
+            twist_stick_fraction: t.twist_stick_fraction.map(round6),
+            shear_slips: t.shear_slips,
+            twist_slips: t.twist_slips,
+            object_slips: t.object_slips,
+        };
+        match &mut self.sim_steps {
+            Some(w) => {
+                w.row(&row)?;
+                w.sync()
+            }
+            None => Ok(()),
+        }
     }
 
     /// Appends a step row and makes it, and everything recorded before it, durable.

@@ -273,7 +273,10 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
 /// Opens the devices the protocol needs, building the simulated bench if the rig has one.
 async fn open_bench(loaded: &Loaded, clock: &Clock, seed: u64) -> Result<Rig, String> {
     let plant = if loaded.rig.uses_sim() {
-        Some(plant_spec(&loaded.protocol).map_err(|e| format!("simulated bench: {e}"))?)
+        Some(
+            plant_spec(&loaded.protocol, &loaded.compiled)
+                .map_err(|e| format!("simulated bench: {e}"))?,
+        )
     } else {
         None
     };
@@ -1076,6 +1079,11 @@ impl Exec<'_> {
             t_end_ns: self.now(),
         };
         self.rec.step(&row)?;
+        if let Some(sensor) = self.rig.force.as_mut()
+            && let Some(truth) = sensor.truth().await
+        {
+            self.rec.sim_truth(s.step, self.trial, &truth)?;
+        }
         let steps_done = row.step;
         self.rec
             .update_manifest(|m| m.steps_completed = steps_done)?;

@@ -16,8 +16,17 @@
 //! - [`field`]: in-plane surface displacement fields under normal, shear and torsional load.
 
 pub mod contact;
+pub mod fft2;
 pub mod field;
+pub mod friction;
 pub mod geometry;
+pub mod greens;
+pub mod operator;
+#[cfg(test)]
+mod oracles;
+pub mod punch;
+pub mod response;
+pub mod solve;
 pub mod viscoelastic;
 
 pub use geometry::{Indenter, Layer, Material};

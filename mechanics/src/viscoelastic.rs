@@ -125,6 +125,28 @@ impl PronyState {
         }
     }
 
+    /// Caps |value| at `limit` by trimming only the hereditary part, leaving the driving
+    /// value as it is: a friction limit cuts the viscoelastic overshoot, and the memory of
+    /// what drives the channel must stay right for the next update.
+    pub fn cap_hereditary(&mut self, limit: f64) {
+        let v = self.value();
+        if v.abs() <= limit {
+            return;
+        }
+        let hsum: f64 = self.h.iter().sum();
+        let target = v.signum() * limit - self.driving;
+        if hsum == 0.0 || target * hsum <= 0.0 {
+            for h in &mut self.h {
+                *h = 0.0;
+            }
+        } else {
+            let k = target / hsum;
+            for h in &mut self.h {
+                *h *= k;
+            }
+        }
+    }
+
     /// Shifts the driving value by `delta` without any hereditary response (a slip that
     /// moves the elastic anchor, not a new load).
     pub fn shift_driving(&mut self, delta: f64) {
@@ -230,6 +252,54 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn ramp_and_hold_is_exact_for_stiff_and_slow_terms() {
+        // F(t) = ∫ g(t−s) ḟ(s) ds for f ramping at rate 1 to t₁ then held:
+        // t ≤ t₁: t + Σ wτ(1 − e^{−t/τ}); t > t₁: t₁ + Σ wτ(e^{−(t−t₁)/τ} − e^{−t/τ}).
+        for tau in [1e-3, 1e-1, 10.0, 1e4] {
+            for dt in [1e-4, 1e-2, 1.0, 100.0] {
+                let w = 0.7;
+                let p = Prony::new(vec![PronyTerm {
+                    weight: w,
+                    tau_s: tau,
+                }])
+                .expect("valid");
+                let mut s = p.state();
+                let t1 = 10.0 * dt;
+                let mut t: f64 = 0.0;
+                for k in 1..=30 {
+                    let t_next = k as f64 * dt;
+                    s.advance_linear(&p, dt, t_next.min(t1));
+                    t = t_next;
+                    let exact = if t <= t1 + 1e-15 {
+                        t + w * tau * -(-t / tau).exp_m1()
+                    } else {
+                        t1 + w * tau * (-(t - t1) / tau).exp() * -(-t1 / tau).exp_m1()
+                    };
+                    assert!(
+                        (s.value() - exact).abs() <= 1e-12 * exact.abs().max(1e-300) + 1e-300,
+                        "τ {tau} Δt {dt} t {t}: {} vs {exact}",
+                        s.value()
+                    );
+                }
+                assert!(t > t1);
+            }
+        }
+    }
+
+    #[test]
+    fn capping_trims_memory_not_the_driving_value() {
+        let p = spec_series();
+        let mut s = p.state();
+        s.advance_linear(&p, 0.0, 1.0);
+        assert!(s.value() > 1.5);
+        s.cap_hereditary(1.2);
+        assert!((s.value() - 1.2).abs() < 1e-12 && s.driving() == 1.0);
+        // A later drop of the driving value is a real drop.
+        s.advance_linear(&p, 1e3, 0.8);
+        assert!(s.value() < 1.0);
     }
 
     #[test]

@@ -182,6 +182,34 @@ pub struct ForceInfo {
     pub identity: String,
 }
 
+/// What a simulated bench knows that no sensor can: the contact's true state, recorded
+/// beside the data of a dry run so analysis can be checked against it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SimTruth {
+    /// Indentation depth, mm.
+    pub depth_mm: f64,
+    /// The wrench without sensor offset, noise or quantisation.
+    pub wrench: Wrench,
+    /// The long-term (fully relaxed) wrench of the present state.
+    pub equilibrium: Wrench,
+    /// Effective contact radius √(A/π), mm.
+    pub contact_radius_mm: f64,
+    /// Fraction of the contact that sticks under shear (None without shear).
+    pub shear_stick_fraction: Option<f64>,
+    /// Fraction of the contact that sticks under twist (None without twist).
+    pub twist_stick_fraction: Option<f64>,
+    /// Sliding in full slip under shear.
+    pub shear_sliding: bool,
+    /// Sliding in full slip under twist.
+    pub twist_sliding: bool,
+    /// Times the contact went into full slip under shear since it was made.
+    pub shear_slips: u32,
+    /// Times the contact went into full slip under twist since it was made.
+    pub twist_slips: u32,
+    /// Times a grasped object slipped out of the grasp.
+    pub object_slips: u32,
+}
+
 /// A six-axis force/torque sensor.
 #[async_trait]
 pub trait ForceSensor: Send {
@@ -189,6 +217,10 @@ pub trait ForceSensor: Send {
     fn info(&self) -> &ForceInfo;
     /// The most recent sample.
     async fn read(&mut self) -> Result<ForceSample, RigError>;
+    /// Ground truth of a simulated bench at the current time; `None` for real sensors.
+    async fn truth(&mut self) -> Option<SimTruth> {
+        None
+    }
 }
 
 /// One RGB frame.

@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::config::{AxisDriver, AxisRole, CameraDriver, DisturberDriver, ForceDriver, RigConfig};
 use crate::device::{Axis, AxisInfo, Camera, CameraInfo, Disturber, ForceInfo, ForceSensor};
-use crate::sim::plant::{BenchGeometry, Plant};
+use crate::sim::plant::{BenchGeometry, Plant, PlantNeeds};
 use crate::sim::{PlantSpec, SimAxis, SimCamera, SimDisturber, SimForceSensor};
 use crate::{Clock, RigError};
 
@@ -96,7 +96,13 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
             force_bias_n: sim.force_bias.map(|f| f.n()).unwrap_or(0.0),
             noise: sim.noise.unwrap_or(true),
         };
-        let p = Arc::new(Mutex::new(Plant::new(spec, geometry, req.seed)?));
+        // Build only what the opened devices will ask for.
+        let needs = PlantNeeds {
+            shear: req.axes.contains(&AxisRole::Shear),
+            twist: req.axes.contains(&AxisRole::Rotation),
+            fields: req.camera,
+        };
+        let p = Arc::new(Mutex::new(Plant::new(spec, geometry, needs, req.seed)?));
         plant = Some(p.clone());
         Ok(p)
     };

@@ -148,6 +148,33 @@ pub(crate) fn run_virtual(
     (outcome, plan)
 }
 
+/// The run directory of a shipped protocol dry-run once per test process (seed 1),
+/// shared by every test that only reads it.
+pub(crate) fn shared_dry_run(name: &str) -> PathBuf {
+    static RUNS: OnceLock<std::sync::Mutex<std::collections::BTreeMap<String, PathBuf>>> =
+        OnceLock::new();
+    static ROOT: OnceLock<tempfile::TempDir> = OnceLock::new();
+    let root = ROOT.get_or_init(|| tempfile::tempdir().unwrap());
+    let runs = RUNS.get_or_init(Default::default);
+    let mut map = runs
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some(dir) = map.get(name) {
+        return dir.clone();
+    }
+    let loaded = load_ok(&protocol(name));
+    let out = root.path().join(name);
+    let (outcome, _) = run_virtual(&loaded, &out, 1, None);
+    assert_eq!(
+        outcome.status,
+        experiments::record::Status::Completed,
+        "{name}: {:?}",
+        outcome.message
+    );
+    map.insert(name.to_string(), outcome.dir.clone());
+    outcome.dir
+}
+
 /// Rows of a CSV file as maps from column to text.
 pub(crate) fn csv_rows(path: &Path) -> Vec<std::collections::BTreeMap<String, String>> {
     let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

@@ -274,6 +274,37 @@ impl Compiled {
     pub fn has_errors(&self) -> bool {
         self.issues.iter().any(|i| i.severity == Severity::Error)
     }
+
+    /// The deepest indentation (mm, relative to contact) any step of a pressing axis asks
+    /// for after an approach, or `fallback` when an approach's own creep decides it
+    /// (a grasp closing to a squeeze force).
+    pub fn max_depth_mm(&self, fallback: f64) -> f64 {
+        let mut deepest: f64 = 0.0;
+        let mut creep_decides = false;
+        for a in &self.actions {
+            match &a.kind {
+                ActionKind::Step(s) => {
+                    if let (Some(axis), Some(Target::To(v))) = (s.axis, s.target)
+                        && axis.presses()
+                    {
+                        deepest = deepest.max(v);
+                    }
+                    if let (Some(axis), Some(Target::By(_))) = (s.axis, s.target)
+                        && axis.presses()
+                    {
+                        creep_decides = true;
+                    }
+                }
+                ActionKind::Approach(ap) if ap.axis == AxisRole::Grip => creep_decides = true,
+                _ => {}
+            }
+        }
+        if creep_decides {
+            deepest.max(fallback)
+        } else {
+            deepest
+        }
+    }
 }
 
 /// The rig's view of an axis, for checks.

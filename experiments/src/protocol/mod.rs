@@ -124,8 +124,9 @@ pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded,
     })
 }
 
-/// The simulated bench's description of this protocol's sensor, indenter and object.
-pub fn plant_spec(p: &Protocol) -> Result<PlantSpec, String> {
+/// The simulated bench's description of this protocol's sensor, indenter and object;
+/// `compiled` bounds the depths the contact model must cover.
+pub fn plant_spec(p: &Protocol, compiled: &Compiled) -> Result<PlantSpec, String> {
     let sensor = &p.sensor;
     let kind = sensor.kind;
     let e = sensor
@@ -206,11 +207,15 @@ pub fn plant_spec(p: &Protocol) -> Result<PlantSpec, String> {
         indenter,
     )
     .map_err(|e| e.to_string())?;
+    let h = e.thickness.mm();
     Ok(PlantSpec {
         contact,
         markers,
         view_width_mm: v.width.mm(),
         view_height_mm: v.height.mm(),
         object_mass_g: p.object.as_ref().map(|o| o.mass.g()),
+        max_depth_mm: compiled.max_depth_mm(0.5 * h).clamp(0.05 * h, 0.95 * h),
+        kinetic_friction: m.kinetic_friction.unwrap_or(0.9 * m.friction),
+        quality: rig::sim::Quality::default(),
     })
 }

@@ -137,8 +137,12 @@ pub struct MaterialSpec {
     pub youngs_modulus: Pressure,
     /// Poisson ratio, 0 to 0.5 (silicone: 0.49–0.5).
     pub poisson_ratio: f64,
-    /// Coulomb friction coefficient against the indenter.
+    /// Static Coulomb friction coefficient against the indenter.
     pub friction: f64,
+    /// Sliding (kinetic) friction coefficient, at most `friction` (default 0.9 × it): the
+    /// force drop after full slip (thesis Fig. 4-16).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kinetic_friction: Option<f64>,
     /// Prony terms: modulus `weight × E` relaxing with time constant `tau`.
     #[serde(default)]
     pub prony: Vec<PronySpec>,
@@ -574,19 +578,20 @@ impl Block {
 pub mod defaults {
     use super::*;
 
-    /// Box sensor pad: 125 × 70 × 4.2 mm (thesis §4.1).
-    pub fn elastomer(kind: SensorKind) -> Elastomer {
+    fn layer(kind: SensorKind) -> mechanics::Layer {
         match kind {
-            SensorKind::Box => Elastomer {
-                width: Length::new(125.0),
-                length: Length::new(70.0),
-                thickness: Length::new(4.2),
-            },
-            SensorKind::Portable => Elastomer {
-                width: Length::new(22.6),
-                length: Length::new(23.4),
-                thickness: Length::new(2.0),
-            },
+            SensorKind::Box => mechanics::geometry::presets::BOX_LAYER,
+            SensorKind::Portable => mechanics::geometry::presets::PORTABLE_LAYER,
+        }
+    }
+
+    /// Pad dimensions of the thesis's sensors ([`mechanics::geometry::presets`]).
+    pub fn elastomer(kind: SensorKind) -> Elastomer {
+        let l = layer(kind);
+        Elastomer {
+            width: Length::new(l.width_mm),
+            length: Length::new(l.length_mm),
+            thickness: Length::new(l.thickness_mm),
         }
     }
 
@@ -621,25 +626,24 @@ pub mod defaults {
         }
     }
 
-    /// Material defaults, chosen so dry runs land where the thesis's figures do: the box
-    /// sphere at 1.0 mm gives ≈2 N (§5.1 reports 2.1 N), relaxation is complete to ≈0.5 %
-    /// after the 3-minute settles of §4.2 (1–2 minutes on the portable pad, §6.2), and
-    /// shear slips within the thesis's load ranges. These are not measured material data
-    /// (none are published for these elastomers, spec §3); calibrate them per gel.
+    /// Material of the thesis's sensors ([`mechanics::geometry::presets`], where the
+    /// choice of values is explained).
     pub fn material(kind: SensorKind) -> MaterialSpec {
-        let (e, prony) = match kind {
-            SensorKind::Box => (0.25, [(0.25, 1.5), (0.20, 15.0), (0.15, 60.0)]),
-            SensorKind::Portable => (0.15, [(0.30, 1.0), (0.20, 10.0), (0.10, 40.0)]),
+        let m = match kind {
+            SensorKind::Box => mechanics::geometry::presets::box_material(),
+            SensorKind::Portable => mechanics::geometry::presets::portable_material(),
         };
         MaterialSpec {
-            youngs_modulus: Pressure::new(e),
-            poisson_ratio: 0.49,
-            friction: 0.6,
-            prony: prony
+            youngs_modulus: Pressure::new(m.youngs_modulus_mpa),
+            poisson_ratio: m.poisson_ratio,
+            friction: m.friction,
+            kinetic_friction: Some(mechanics::geometry::presets::KINETIC_RATIO * m.friction),
+            prony: m
+                .prony
                 .iter()
-                .map(|&(weight, tau)| PronySpec {
-                    weight,
-                    tau: Duration::new(tau),
+                .map(|t| PronySpec {
+                    weight: t.weight,
+                    tau: Duration::new(t.tau_s),
                 })
                 .collect(),
         }

@@ -52,7 +52,7 @@ impl Camera for SimCamera {
         self.last_t_ns = Some(t);
         let surface = lock(&self.plant).surface(t);
         let seq = t / self.period_ns;
-        let (rgb, truth) = self.renderer.render(&surface, seq);
+        let (rgb, truth) = self.renderer.render(surface.as_ref(), seq);
         Ok(Frame {
             t_ns: t,
             seq,

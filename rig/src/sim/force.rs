@@ -5,7 +5,7 @@ use std::sync::{Arc, Mutex};
 use async_trait::async_trait;
 
 use super::plant::Plant;
-use crate::device::{Disturber, ForceInfo, ForceSample, ForceSensor};
+use crate::device::{Disturber, ForceInfo, ForceSample, ForceSensor, SimTruth};
 use crate::{Clock, RigError, lock};
 
 /// Reads the plant's wrench with the sensor's bias, noise, resolution and range.
@@ -36,6 +36,11 @@ impl ForceSensor for SimForceSensor {
             wrench,
             status,
         })
+    }
+
+    async fn truth(&mut self) -> Option<SimTruth> {
+        let t_ns = self.clock.now_ns();
+        Some(lock(&self.plant).truth(t_ns))
     }
 }
 

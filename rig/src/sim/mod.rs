@@ -5,10 +5,9 @@
 //! relaxes while it settles, saturates at the Coulomb limit when the shear stage goes too
 //! far, and the camera's markers move with it. Everything is seeded and deterministic.
 //!
-//! Physics here is the spine's: contact laws and fields from [`mechanics`] (closed forms and
-//! tabulated layer solutions) with Prony relaxation. Partial slip, the layer field solver and
-//! the GelSight shading are the physics issue's work; this module says so where it
-//! simplifies.
+//! Physics: a contact model precomputed by the bonded-layer solvers of [`mechanics`]
+//! (normal contact, partial slip in shear and twist, surface fields), Prony relaxation,
+//! Masing friction elements, and a GelSight-like renderer.
 //!
 //! [`Clock`]: crate::Clock
 
@@ -16,10 +15,11 @@ mod axis;
 mod camera;
 mod force;
 pub(crate) mod plant;
-mod render;
+pub mod render;
 
 pub(crate) use axis::SimAxis;
 pub(crate) use camera::SimCamera;
 pub(crate) use force::{SimDisturber, SimForceSensor};
+pub use mechanics::response::Quality;
 pub use plant::{MarkerLayout, PlantSpec};
-pub use render::marker_reference_positions_mm;
+pub use render::{Renderer, SurfaceView, marker_reference_positions_mm};

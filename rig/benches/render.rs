@@ -1,0 +1,100 @@
+//! Time of one simulated GelSight frame at 640×480 (issue 3 target: ≤ 5 ms): shading of the
+//! surface slope, 288 markers at displaced positions with blurred edges, noise. The field
+//! itself is the `mechanics` bench `field/256`.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use mechanics::contact::Contact;
+use mechanics::response::{ContactModel, ModelSpec, Quality, State};
+use mechanics::{Indenter, Layer};
+use rig::sim::{MarkerLayout, PlantSpec, Renderer, SurfaceView};
+
+fn spec(markers: MarkerLayout, view: (f64, f64), h: f64, indenter: Indenter) -> PlantSpec {
+    PlantSpec {
+        contact: Contact::new(
+            Layer {
+                width_mm: 125.0,
+                length_mm: 70.0,
+                thickness_mm: h,
+            },
+            mechanics::geometry::presets::box_material(),
+            indenter,
+        )
+        .expect("valid contact"),
+        markers,
+        view_width_mm: view.0,
+        view_height_mm: view.1,
+        object_mass_g: None,
+        max_depth_mm: 0.84,
+        kinetic_friction: 0.54,
+        quality: Quality::default(),
+    }
+}
+
+fn render(c: &mut Criterion) {
+    let mut group = c.benchmark_group("frame_640x480");
+    let cases = [
+        (
+            "box_grid_288",
+            spec(
+                MarkerLayout::Grid {
+                    columns: 18,
+                    rows: 16,
+                    spacing_mm: 2.52,
+                    diameter_mm: 1.4,
+                },
+                (45.36, 40.32),
+                4.2,
+                Indenter::FlatCircle { diameter_mm: 9.5 },
+            ),
+            0.84,
+        ),
+        (
+            "portable_triangles",
+            spec(
+                MarkerLayout::Random {
+                    spacing_mm: 2.0,
+                    size_mm: 0.7,
+                },
+                (20.0, 15.0),
+                2.0,
+                Indenter::FlatCircle { diameter_mm: 12.5 },
+            ),
+            0.3,
+        ),
+    ];
+    for (name, s, depth) in cases {
+        let mut model = ContactModel::build(ModelSpec {
+            contact: s.contact.clone(),
+            max_depth_mm: depth,
+            shear: false,
+            twist: false,
+            field_view_mm: Some((s.view_width_mm, s.view_height_mm)),
+            quality: Quality::default(),
+        })
+        .expect("model");
+        let field = model
+            .field(State {
+                depth_mm: depth,
+                shear_n: 0.0,
+                torque_nmm: 0.0,
+            })
+            .expect("field");
+        let view = SurfaceView {
+            field,
+            centre_mm: (0.0, 0.0),
+            rotation_rad: 0.0,
+        };
+        let renderer = Renderer::new(&s, 640, 480);
+        let mut seq = 0;
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                seq += 1;
+                renderer.render(Some(&view), seq)
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, render);
+criterion_main!(benches);

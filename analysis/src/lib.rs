@@ -11,6 +11,10 @@
 //! only on `mechanics`, for the reference fields it fits against.
 //!
 //! Modules:
+//! - [`tracking`]: marker detection, identity across frames, weighted Lucas–Kanade.
+//! - [`field`]: dense displacement fields, their pictures and their decomposition.
 //! - [`relaxation`]: F∞ and τ of a step's relaxation by variable projection; Aitken.
 
+pub mod field;
 pub mod relaxation;
+pub mod tracking;

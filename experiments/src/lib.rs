@@ -4,7 +4,8 @@
 //! a rig file ([`protocol`]), expands it into steps with durations and data volumes
 //! ([`plan`]), executes it on the devices the rig crate opens — real or simulated — with
 //! settling, capture, a safety watchdog and a safe stop ([`runner`]), and records everything
-//! into a crash-safe run directory ([`record`], listed by [`runs`]).
+//! into a crash-safe run directory ([`record`], listed by [`runs`]). [`track`] runs the
+//! marker tracker over image files or a run's frames.
 //!
 //! The `gelrig` binary is a thin CLI over these modules.
 
@@ -15,5 +16,6 @@ pub mod protocol;
 pub mod record;
 pub mod runner;
 pub mod runs;
+pub mod track;
 
 pub use diag::{Diagnostic, Severity};

@@ -2,14 +2,13 @@
 //! out, determinism, and every way a run can end early.
 
 use std::collections::BTreeSet;
-use std::path::Path;
 use std::process::Command;
 
 use experiments::record::Status;
 
 use crate::support::{
-    SHIPPED, col, csv_rows, gelrig, load_ok, load_text, manifest, protocol, run_virtual,
-    runs_listing, shipped_text,
+    SHIPPED, col, csv_rows, gelrig, image_size, load_ok, load_text, manifest, protocol,
+    run_virtual, runs_listing, shipped_text,
 };
 
 fn edit(text: &str, from: &str, to: &str) -> String {
@@ -168,16 +167,6 @@ fn box_normal_flat_records_the_thesis_experiment() {
     assert!(!dir.join("axes.csv").exists());
     let m = manifest(dir);
     assert!(m.tare.is_some() && m.origins.contains_key("normal"));
-}
-
-fn image_size(path: &Path) -> (u32, u32) {
-    // PNG IHDR: width and height are big-endian u32 at bytes 16..24.
-    let bytes = std::fs::read(path).unwrap();
-    assert_eq!(&bytes[1..4], b"PNG", "{}", path.display());
-    (
-        u32::from_be_bytes(bytes[16..20].try_into().unwrap()),
-        u32::from_be_bytes(bytes[20..24].try_into().unwrap()),
-    )
 }
 
 #[test]

@@ -9,4 +9,5 @@ mod physics;
 mod plan;
 mod signals;
 mod support;
+mod track;
 mod validate;

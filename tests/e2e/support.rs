@@ -206,3 +206,14 @@ pub(crate) fn col(rows: &[std::collections::BTreeMap<String, String>], name: &st
 pub(crate) fn manifest(dir: &Path) -> experiments::record::Manifest {
     experiments::record::read_manifest(dir).unwrap()
 }
+
+/// Width and height of a PNG file.
+pub(crate) fn image_size(path: &Path) -> (u32, u32) {
+    // PNG IHDR: width and height are big-endian u32 at bytes 16..24.
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG", "{}", path.display());
+    (
+        u32::from_be_bytes(bytes[16..20].try_into().unwrap()),
+        u32::from_be_bytes(bytes[20..24].try_into().unwrap()),
+    )
+}

@@ -117,6 +117,7 @@ pub struct Renderer {
     lut: Vec<f32>,
     lut_origin: f64,
     noise: Vec<i8>,
+    noisy: bool,
     /// Unit light directions in the image plane (x right, y down) for R, G, B.
     lights: [(f64, f64); 3],
 }
@@ -124,8 +125,25 @@ pub struct Renderer {
 impl Renderer {
     /// Prepares the background, marker layout, blur table and noise texture.
     pub fn new(spec: &PlantSpec, width: u32, height: u32) -> Self {
-        let mm_per_px =
-            (spec.view_width_mm / width as f64).max(spec.view_height_mm / height as f64);
+        Self::for_view(
+            &spec.markers,
+            spec.view_width_mm,
+            spec.view_height_mm,
+            width,
+            height,
+        )
+    }
+
+    /// A renderer for a marker layout seen over `view_width_mm × view_height_mm`, without a
+    /// contact model (tests and benchmarks of the tracker draw markers where they choose).
+    pub fn for_view(
+        markers: &MarkerLayout,
+        view_width_mm: f64,
+        view_height_mm: f64,
+        width: u32,
+        height: u32,
+    ) -> Self {
+        let mm_per_px = (view_width_mm / width as f64).max(view_height_mm / height as f64);
         let mut background = Vec::with_capacity((width * height * 3) as usize);
         for y in 0..height {
             for x in 0..width {
@@ -157,8 +175,7 @@ impl Renderer {
             let a = deg.to_radians();
             (a.cos(), a.sin())
         });
-        let markers_mm =
-            marker_reference_positions_mm(&spec.markers, spec.view_width_mm, spec.view_height_mm);
+        let markers_mm = marker_reference_positions_mm(markers, view_width_mm, view_height_mm);
         let mut orient_rng = StdRng::seed_from_u64(0x07A1_A6E5);
         let orientations = markers_mm
             .iter()
@@ -171,10 +188,11 @@ impl Renderer {
             background,
             orientations,
             markers_mm,
-            layout: spec.markers.clone(),
+            layout: markers.clone(),
             lut,
             lut_origin,
             noise,
+            noisy: true,
             lights,
         }
     }
@@ -190,41 +208,87 @@ impl Renderer {
         }
     }
 
-    /// Renders one frame; returns RGB pixels and the exact marker centres in pixels.
+    /// Without sensor noise (clean frames for sub-pixel accuracy tests).
+    pub fn without_noise(mut self) -> Self {
+        self.noisy = false;
+        self
+    }
+
+    /// Millimetres per pixel of the view.
+    pub fn mm_per_px(&self) -> f64 {
+        self.mm_per_px
+    }
+
+    /// Undeformed marker centres, px, with pixel (i, j) centred at (i, j).
+    pub fn reference_px(&self) -> Vec<[f64; 2]> {
+        self.markers_mm
+            .iter()
+            .map(|&(x, y)| self.to_px(x, y))
+            .collect()
+    }
+
+    /// View millimetres (centred) to pixels, pixel (i, j) centred at (i, j).
+    fn to_px(&self, x_mm: f64, y_mm: f64) -> [f64; 2] {
+        [
+            self.width as f64 / 2.0 - 0.5 + x_mm / self.mm_per_px,
+            self.height as f64 / 2.0 - 0.5 + y_mm / self.mm_per_px,
+        ]
+    }
+
+    /// Renders one frame; returns RGB pixels and the exact marker centres in pixels (pixel
+    /// (i, j) centred at (i, j), the tracker's convention).
     pub fn render(&self, surface: Option<&SurfaceView>, seq: u64) -> (Vec<u8>, Vec<[f64; 2]>) {
-        let (w, h) = (self.width as usize, self.height as usize);
+        // Markers at their displaced positions.
+        let (c, sn) = surface
+            .map(|s| (s.rotation_rad.cos(), s.rotation_rad.sin()))
+            .unwrap_or((1.0, 0.0));
+        let truth: Vec<[f64; 2]> = self
+            .markers_mm
+            .iter()
+            .map(|&(x, y)| {
+                let (ux, uy) = match surface {
+                    Some(s) => {
+                        // Reference point in the contact pattern's frame, then back.
+                        let (dx, dy) = (x - s.centre_mm.0, y - s.centre_mm.1);
+                        let (px, py) = (c * dx + sn * dy, -sn * dx + c * dy);
+                        let g = &s.field.grid;
+                        let (fx, fy) =
+                            (g.sample(&s.field.ux, px, py), g.sample(&s.field.uy, px, py));
+                        (c * fx - sn * fy, sn * fx + c * fy)
+                    }
+                    None => (0.0, 0.0),
+                };
+                self.to_px(x + ux, y + uy)
+            })
+            .collect();
+        let turn = surface.map(|s| s.rotation_rad).unwrap_or(0.0);
+        let rgb = self.render_at(surface, &truth, turn, seq);
+        (rgb, truth)
+    }
+
+    /// Renders the markers at `centres_px` (one per reference marker, in order; pixel (i, j)
+    /// centred at (i, j)), triangles turned by `turn_rad`, over the shading of `surface`.
+    pub fn render_at(
+        &self,
+        surface: Option<&SurfaceView>,
+        centres_px: &[[f64; 2]],
+        turn_rad: f64,
+        seq: u64,
+    ) -> Vec<u8> {
         let mut img: Vec<f32> = self.background.clone();
         if let Some(s) = surface {
             self.shade(&mut img, s);
         }
-        // Markers at their displaced positions.
-        let mut truth = Vec::with_capacity(self.markers_mm.len());
-        let (c, sn) = surface
-            .map(|s| (s.rotation_rad.cos(), s.rotation_rad.sin()))
-            .unwrap_or((1.0, 0.0));
-        for (m, &(x, y)) in self.markers_mm.iter().enumerate() {
-            let (ux, uy) = match surface {
-                Some(s) => {
-                    // Reference point in the contact pattern's frame, then back.
-                    let (dx, dy) = (x - s.centre_mm.0, y - s.centre_mm.1);
-                    let (px, py) = (c * dx + sn * dy, -sn * dx + c * dy);
-                    let g = &s.field.grid;
-                    let (fx, fy) = (g.sample(&s.field.ux, px, py), g.sample(&s.field.uy, px, py));
-                    (c * fx - sn * fy, sn * fx + c * fy)
-                }
-                None => (0.0, 0.0),
-            };
-            let cx = w as f64 / 2.0 + (x + ux) / self.mm_per_px;
-            let cy = h as f64 / 2.0 + (y + uy) / self.mm_per_px;
-            truth.push([cx, cy]);
+        for (m, &[x, y]) in centres_px.iter().enumerate() {
+            // The drawing code puts pixel centres at +0.5.
+            let (cx, cy) = (x + 0.5, y + 0.5);
             match self.layout {
                 MarkerLayout::Grid { diameter_mm, .. } => {
                     self.dot(&mut img, cx, cy, diameter_mm / 2.0 / self.mm_per_px)
                 }
                 MarkerLayout::Random { size_mm, .. } => {
                     // The printed triangle turns with the surface it is printed on.
-                    let turn =
-                        self.orientations[m] + surface.map(|s| s.rotation_rad).unwrap_or(0.0);
+                    let turn = self.orientations.get(m).copied().unwrap_or(0.0) + turn_rad;
                     self.triangle(&mut img, cx, cy, size_mm / self.mm_per_px, turn)
                 }
             }
@@ -232,13 +296,12 @@ impl Renderer {
         // Noise from the texture, at a per-frame offset; then to bytes.
         let offset = (seq.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 44) as usize;
         let mask = self.noise.len() - 1;
+        let gain = if self.noisy { 1.0 } else { 0.0 };
         // Float-to-integer casts saturate, so `+ 0.5` and a cast round and clamp at once.
-        let out = img
-            .iter()
+        img.iter()
             .enumerate()
-            .map(|(i, v)| (v + self.noise[(i + offset) & mask] as f32 + 0.5) as u8)
-            .collect();
-        (out, truth)
+            .map(|(i, v)| (v + gain * self.noise[(i + offset) & mask] as f32 + 0.5) as u8)
+            .collect()
     }
 
     /// Adds the lights' response to the surface slope.

@@ -1,8 +1,8 @@
 //! `gelrig`: run tactile-force experiments on GelSight sensors from YAML protocols.
 //!
 //! Thin by design: each subcommand parses its arguments and calls the `experiments` crate.
-//! Exit codes: 0 success; 1 run failed or other error; 2 invalid protocol or rig (or bad
-//! command line); 3 run aborted by a safety limit or settle timeout; 130 run interrupted.
+//! Exit codes: 0 success; 1 run failed or other error; 2 invalid protocol, rig or tracking
+//! input (or bad command line); 3 run aborted by a safety limit or settle timeout; 130 run interrupted.
 
 mod cmd;
 
@@ -33,6 +33,8 @@ enum Command {
     Runs(cmd::runs::Cmd),
     /// Print the JSON Schema of protocol files (or rig files), for editors.
     Schema(cmd::schema::Cmd),
+    /// Track GelSight markers in frames or a run: markers.csv, optional field pictures.
+    Track(cmd::track::Cmd),
 }
 
 fn main() -> ExitCode {
@@ -43,6 +45,7 @@ fn main() -> ExitCode {
         Command::Run(c) => c.run(),
         Command::Runs(c) => c.run(),
         Command::Schema(c) => c.run(),
+        Command::Track(c) => c.run(),
     };
     match result {
         Ok(code) => code,

@@ -4,6 +4,7 @@ pub(crate) mod plan;
 pub(crate) mod run;
 pub(crate) mod runs;
 pub(crate) mod schema;
+pub(crate) mod track;
 pub(crate) mod validate;
 
 use std::path::Path;

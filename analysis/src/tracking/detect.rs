@@ -1,0 +1,503 @@
+//! Marker detection: darkness, low-pass, hysteresis threshold, run-based components.
+//!
+//! The per-pixel passes dominate the cost (the connected components touch only the ~10 %
+//! of pixels that are marker), so they work on bytes with integer arithmetic the compiler
+//! vectorises, and reuse their buffers: no allocation per frame once warm.
+//!
+//! Components are found in one pass over runs of above-threshold pixels (Rosenfeld & Pfaltz
+//! 1966, run-based with union–find, 8-connected). Each run carries its darkness-weighted
+//! moments with weight `w = d − t_low`: zero at the threshold, so a pixel crossing it
+//! neither jumps in nor out of the centroid, which keeps the centroid free of the
+//! threshold-dependent bias of an unweighted blob centre (thesis §3.4 used the darkness
+//! centroid for the same reason). The high threshold (hysteresis) keeps only components
+//! whose darkest pixel is clearly a marker, so faint shading never starts a blob.
+
+use super::reference::Reference;
+use super::{RgbView, TrackError};
+
+/// Thresholds in smoothed-darkness levels (1/255 of the background) and area limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Thresholds {
+    pub(crate) low: u8,
+    pub(crate) high: u8,
+    pub(crate) min_area: u32,
+    pub(crate) max_area: u32,
+    /// Blobs larger than this and elongated are split into markers (0: never).
+    pub(crate) split_area: u32,
+    /// Area of one marker, px², to count the markers in a merged blob.
+    pub(crate) marker_area: f64,
+    /// Components closer than this are fragments of one marker (0: never joined).
+    pub(crate) fragment_radius: f64,
+}
+
+/// A dark blob: one marker, part of one at the border, or several merged.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Blob {
+    /// Darkness-weighted centroid, px.
+    pub x: f64,
+    /// Darkness-weighted centroid, px.
+    pub y: f64,
+    /// Pixels above the low threshold.
+    pub area_px: u32,
+    /// Σ weight (darkness above the low threshold).
+    pub mass: f64,
+    /// Darkest smoothed pixel, 1/255 of the background.
+    pub peak: u8,
+    /// Weighted second central moments, px²: xx, yy, xy.
+    pub moments: [f64; 3],
+    /// Bounding box, inclusive: x0, y0, x1, y1.
+    pub bbox: [u32; 4],
+    /// Touches the image border, so part of the marker may be cut off.
+    pub border: bool,
+    /// Split from a blob of several merged markers: position less certain.
+    pub merged: bool,
+}
+
+impl Blob {
+    /// Ratio of the principal axes of the weighted second moments (1 for a disc).
+    pub fn elongation(&self) -> f64 {
+        let [xx, yy, xy] = self.moments;
+        let tr = xx + yy;
+        let disc = ((xx - yy) * (xx - yy) + 4.0 * xy * xy).sqrt();
+        let (l1, l2) = ((tr + disc) / 2.0, ((tr - disc) / 2.0).max(1e-9));
+        (l1 / l2).sqrt()
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    y: u32,
+    x0: u32,
+    /// Exclusive.
+    x1: u32,
+    sw: u64,
+    swx: u64,
+    swx2: u64,
+    peak: u8,
+    root: u32,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Acc {
+    n: u64,
+    sw: u64,
+    swx: u64,
+    swy: u64,
+    swx2: u64,
+    swy2: u64,
+    swxy: u64,
+    peak: u8,
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+    /// Holds fragments of other components.
+    joined: bool,
+}
+
+impl Acc {
+    fn centroid(&self) -> [f64; 2] {
+        let sw = self.sw.max(1) as f64;
+        [self.swx as f64 / sw, self.swy as f64 / sw]
+    }
+
+    fn absorb(&mut self, o: &Acc) {
+        self.n += o.n;
+        self.sw += o.sw;
+        self.swx += o.swx;
+        self.swy += o.swy;
+        self.swx2 += o.swx2;
+        self.swy2 += o.swy2;
+        self.swxy += o.swxy;
+        self.peak = self.peak.max(o.peak);
+        self.x0 = self.x0.min(o.x0);
+        self.y0 = self.y0.min(o.y0);
+        self.x1 = self.x1.max(o.x1);
+        self.y1 = self.y1.max(o.y1);
+        self.joined = true;
+    }
+}
+
+/// Finds marker blobs in frames; holds its buffers so a warm detector does not allocate.
+#[derive(Debug, Clone)]
+pub struct Detector {
+    width: usize,
+    height: usize,
+    dark: Vec<u8>,
+    rows: Vec<u16>,
+    smooth: Vec<u8>,
+    runs: Vec<Run>,
+    parent: Vec<u32>,
+    acc_of_root: Vec<u32>,
+    accs: Vec<Acc>,
+    blobs: Vec<Blob>,
+    low: u8,
+}
+
+impl Detector {
+    /// A detector for frames of this size.
+    pub fn new(width: usize, height: usize) -> Self {
+        let n = width * height;
+        Self {
+            width,
+            height,
+            dark: vec![0; n],
+            rows: vec![0; n],
+            smooth: vec![0; n],
+            runs: Vec::new(),
+            parent: Vec::new(),
+            acc_of_root: Vec::new(),
+            accs: Vec::new(),
+            blobs: Vec::new(),
+            low: 0,
+        }
+    }
+
+    /// Detects the markers of `frame`, measured against `reference`.
+    pub fn detect(
+        &mut self,
+        frame: RgbView<'_>,
+        reference: &Reference,
+    ) -> Result<&[Blob], TrackError> {
+        reference.check_size(&frame)?;
+        if self.width != frame.width() || self.height != frame.height() {
+            *self = Self::new(frame.width(), frame.height());
+        }
+        self.darkness_into(frame.data(), &reference.inv_bg);
+        self.label(&reference.thresholds);
+        Ok(&self.blobs)
+    }
+
+    /// The blobs of the last frame.
+    pub fn blobs(&self) -> &[Blob] {
+        &self.blobs
+    }
+
+    /// Smoothed darkness of the last frame, 1/255 of the background, row-major.
+    pub fn smoothed(&self) -> &[u8] {
+        &self.smooth
+    }
+
+    /// Frame width, px.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Frame height, px.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Darkness `255·(1 − max_c I_c/B_c)`, clamped at 0, then a 3×3 binomial low-pass.
+    pub(crate) fn darkness_into(&mut self, rgb: &[u8], inv_bg: &[u16]) {
+        let (w, h) = (self.width, self.height);
+        for ((d, px), inv) in self
+            .dark
+            .iter_mut()
+            .zip(rgb.chunks_exact(3))
+            .zip(inv_bg.chunks_exact(3))
+        {
+            let r = px[0] as u32 * inv[0] as u32;
+            let g = px[1] as u32 * inv[1] as u32;
+            let b = px[2] as u32 * inv[2] as u32;
+            let m = (r.max(g).max(b) >> 8).min(255);
+            *d = (255 - m) as u8;
+        }
+        // Horizontal [1 2 1], edges replicated.
+        for (src, dst) in self.dark.chunks_exact(w).zip(self.rows.chunks_exact_mut(w)) {
+            dst[0] = 3 * src[0] as u16 + src[1] as u16;
+            for x in 1..w - 1 {
+                dst[x] = src[x - 1] as u16 + 2 * src[x] as u16 + src[x + 1] as u16;
+            }
+            dst[w - 1] = src[w - 2] as u16 + 3 * src[w - 1] as u16;
+        }
+        // Vertical [1 2 1] and normalisation by 16.
+        for y in 0..h {
+            let up = &self.rows[y.saturating_sub(1) * w..][..w];
+            let mid = &self.rows[y * w..][..w];
+            let down = &self.rows[(y + 1).min(h - 1) * w..][..w];
+            let out = &mut self.smooth[y * w..][..w];
+            for x in 0..w {
+                out[x] = ((up[x] + 2 * mid[x] + down[x] + 8) >> 4) as u8;
+            }
+        }
+    }
+
+    /// Labels runs above the low threshold and keeps components that pass the filters.
+    pub(crate) fn label(&mut self, t: &Thresholds) {
+        let (w, h) = (self.width, self.height);
+        self.low = t.low;
+        self.runs.clear();
+        self.parent.clear();
+        self.blobs.clear();
+        let low = t.low;
+        let mut prev_start = 0usize;
+        for y in 0..h {
+            let row = &self.smooth[y * w..][..w];
+            let row_start = self.runs.len();
+            let mut x = 0usize;
+            while x < w {
+                if row[x] <= low {
+                    x += 1;
+                    continue;
+                }
+                let x0 = x;
+                let (mut sw, mut swx, mut swx2, mut peak) = (0u64, 0u64, 0u64, 0u8);
+                while x < w && row[x] > low {
+                    let v = row[x];
+                    let wgt = (v - low) as u64;
+                    sw += wgt;
+                    swx += wgt * x as u64;
+                    swx2 += wgt * (x * x) as u64;
+                    peak = peak.max(v);
+                    x += 1;
+                }
+                let id = self.runs.len() as u32;
+                self.runs.push(Run {
+                    y: y as u32,
+                    x0: x0 as u32,
+                    x1: x as u32,
+                    sw,
+                    swx,
+                    swx2,
+                    peak,
+                    root: id,
+                });
+                self.parent.push(id);
+            }
+            // Union with 8-connected runs of the previous row (two pointers).
+            let mut p = prev_start;
+            for r in row_start..self.runs.len() {
+                let (a0, a1) = (self.runs[r].x0, self.runs[r].x1);
+                while p < row_start && self.runs[p].x1 < a0 {
+                    p += 1;
+                }
+                let mut q = p;
+                while q < row_start && self.runs[q].x0 <= a1 {
+                    union(&mut self.parent, q as u32, r as u32);
+                    q += 1;
+                }
+            }
+            prev_start = row_start;
+        }
+        // Accumulate per root.
+        self.acc_of_root.clear();
+        self.acc_of_root.resize(self.runs.len(), u32::MAX);
+        self.accs.clear();
+        for i in 0..self.runs.len() {
+            let root = find(&mut self.parent, i as u32) as usize;
+            self.runs[i].root = root as u32;
+            let slot = if self.acc_of_root[root] == u32::MAX {
+                self.acc_of_root[root] = self.accs.len() as u32;
+                let r = &self.runs[i];
+                self.accs.push(Acc {
+                    x0: r.x0,
+                    y0: r.y,
+                    x1: r.x1 - 1,
+                    y1: r.y,
+                    ..Acc::default()
+                });
+                self.accs.len() - 1
+            } else {
+                self.acc_of_root[root] as usize
+            };
+            let r = self.runs[i];
+            let a = &mut self.accs[slot];
+            let y = r.y as u64;
+            a.n += (r.x1 - r.x0) as u64;
+            a.sw += r.sw;
+            a.swx += r.swx;
+            a.swy += r.sw * y;
+            a.swx2 += r.swx2;
+            a.swy2 += r.sw * y * y;
+            a.swxy += r.swx * y;
+            a.peak = a.peak.max(r.peak);
+            a.x0 = a.x0.min(r.x0);
+            a.x1 = a.x1.max(r.x1 - 1);
+            a.y0 = a.y0.min(r.y);
+            a.y1 = a.y1.max(r.y);
+        }
+        if t.fragment_radius > 0.0 {
+            self.merge_fragments(t);
+        }
+        for root in 0..self.acc_of_root.len() {
+            let slot = self.acc_of_root[root];
+            if slot == u32::MAX {
+                continue;
+            }
+            let a = self.accs[slot as usize];
+            if a.peak < t.high || a.n < t.min_area as u64 || a.n > t.max_area as u64 || a.sw == 0 {
+                continue;
+            }
+            let sw = a.sw as f64;
+            let (x, y) = (a.swx as f64 / sw, a.swy as f64 / sw);
+            let xx = a.swx2 as f64 / sw - x * x;
+            let yy = a.swy2 as f64 / sw - y * y;
+            let xy = a.swxy as f64 / sw - x * y;
+            self.blobs.push(Blob {
+                x,
+                y,
+                area_px: a.n as u32,
+                mass: sw,
+                peak: a.peak,
+                moments: [xx, yy, xy],
+                bbox: [a.x0, a.y0, a.x1, a.y1],
+                border: a.x0 == 0 || a.y0 == 0 || a.x1 as usize == w - 1 || a.y1 as usize == h - 1,
+                merged: false,
+            });
+            if t.split_area > 0 && a.n > t.split_area as u64 && !a.joined {
+                let last = self.blobs.len() - 1;
+                if self.blobs[last].elongation() > 1.5 {
+                    let k = (a.n as f64 / t.marker_area).round().clamp(2.0, 4.0) as usize;
+                    let merged = self.blobs[last];
+                    self.blobs.truncate(last);
+                    self.split(&merged, root as u32, k);
+                }
+            }
+        }
+    }
+
+    /// Joins components closer than a marker diameter whose joint area is still one marker's.
+    ///
+    /// Real markers can image as rings (a bright specular centre) whose rim drops below the
+    /// threshold in places; the pieces are one marker, and their joint darkness-weighted
+    /// centroid is its centre. Two distinct markers that close would overlap and so already
+    /// be one component.
+    fn merge_fragments(&mut self, t: &Thresholds) {
+        let mut order: Vec<(f64, u32)> = self
+            .accs
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| a.sw > 0)
+            .map(|(i, a)| (a.centroid()[1], i as u32))
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let r = t.fragment_radius;
+        let max_n = (1.5 * t.marker_area) as u64;
+        for k in 0..order.len() {
+            let i = order[k].1 as usize;
+            for &(y, j) in &order[k + 1..] {
+                if y - order[k].0 > r {
+                    break;
+                }
+                let (ai, aj) = (self.accs[i], self.accs[j as usize]);
+                if ai.sw == 0 || aj.sw == 0 || ai.n + aj.n > max_n {
+                    continue;
+                }
+                let (ci, cj) = (ai.centroid(), aj.centroid());
+                if (ci[0] - cj[0]).hypot(ci[1] - cj[1]) < r {
+                    self.accs[i].absorb(&aj);
+                    self.accs[j as usize] = Acc::default();
+                }
+            }
+        }
+    }
+
+    /// Splits a blob of `k` merged markers by weighted k-means (Lloyd 1982) over its pixels,
+    /// started from points spread along its major axis.
+    fn split(&mut self, blob: &Blob, root: u32, k: usize) {
+        let [xx, yy, xy] = blob.moments;
+        let angle = 0.5 * (2.0 * xy).atan2(xx - yy);
+        let (ax, ay) = (angle.cos(), angle.sin());
+        let major = (0.5 * (xx + yy) + (0.25 * (xx - yy).powi(2) + xy * xy).sqrt()).sqrt();
+        // A uniform bar of standard deviation σ is 2√3·σ long.
+        let len = 2.0 * 3f64.sqrt() * major;
+        let mut centres: Vec<[f64; 2]> = (0..k)
+            .map(|j| {
+                let t = -0.5 * len + len * (j as f64 + 0.5) / k as f64;
+                [blob.x + t * ax, blob.y + t * ay]
+            })
+            .collect();
+        let mut acc = vec![Acc::default(); k];
+        let nearest = |c: &[[f64; 2]], x: f64, y: f64| {
+            let mut best = (0, f64::INFINITY);
+            for (j, cj) in c.iter().enumerate() {
+                let d = (x - cj[0]).powi(2) + (y - cj[1]).powi(2);
+                if d < best.1 {
+                    best = (j, d);
+                }
+            }
+            best.0
+        };
+        for iteration in 0..8 {
+            acc.iter_mut().for_each(|a| {
+                *a = Acc {
+                    x0: u32::MAX,
+                    y0: u32::MAX,
+                    ..Acc::default()
+                }
+            });
+            let (w, low) = (self.width, self.low);
+            for r in self.runs.iter().filter(|r| r.root == root) {
+                let row = &self.smooth[r.y as usize * w..];
+                for x in r.x0..r.x1 {
+                    let j = nearest(&centres, x as f64, r.y as f64);
+                    let wgt = (row[x as usize] - low) as u64;
+                    let (xu, yu) = (x as u64, r.y as u64);
+                    let a = &mut acc[j];
+                    a.n += 1;
+                    a.sw += wgt;
+                    a.swx += wgt * xu;
+                    a.swy += wgt * yu;
+                    a.swx2 += wgt * xu * xu;
+                    a.swy2 += wgt * yu * yu;
+                    a.swxy += wgt * xu * yu;
+                    a.peak = a.peak.max(row[x as usize]);
+                    a.x0 = a.x0.min(x);
+                    a.x1 = a.x1.max(x);
+                    a.y0 = a.y0.min(r.y);
+                    a.y1 = a.y1.max(r.y);
+                }
+            }
+            let moved = centres.iter_mut().zip(&acc).fold(0.0f64, |m, (c, a)| {
+                if a.sw == 0 {
+                    return m;
+                }
+                let n = [a.swx as f64 / a.sw as f64, a.swy as f64 / a.sw as f64];
+                let d = (n[0] - c[0]).hypot(n[1] - c[1]);
+                *c = n;
+                m.max(d)
+            });
+            if moved < 1e-3 && iteration > 0 {
+                break;
+            }
+        }
+        for a in acc.iter().filter(|a| a.sw > 0) {
+            let sw = a.sw as f64;
+            let (x, y) = (a.swx as f64 / sw, a.swy as f64 / sw);
+            self.blobs.push(Blob {
+                x,
+                y,
+                area_px: a.n as u32,
+                mass: sw,
+                peak: a.peak,
+                moments: [
+                    a.swx2 as f64 / sw - x * x,
+                    a.swy2 as f64 / sw - y * y,
+                    a.swxy as f64 / sw - x * y,
+                ],
+                bbox: [a.x0, a.y0, a.x1, a.y1],
+                border: blob.border,
+                merged: true,
+            });
+        }
+    }
+}
+
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let p = parent[i as usize];
+        parent[i as usize] = parent[p as usize];
+        i = p;
+    }
+    i
+}
+
+fn union(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        // Keep the earlier run as the root, so roots are stable in raster order.
+        let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+        parent[hi as usize] = lo;
+    }
+}

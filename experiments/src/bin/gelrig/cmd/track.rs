@@ -1,0 +1,122 @@
+//! `gelrig track`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use analysis::tracking::Method;
+use experiments::track::{Input, Options, TrackFailure, track};
+
+/// Track GelSight markers: positions, displacements and states per frame.
+#[derive(clap::Args)]
+pub(crate) struct Cmd {
+    /// Frames to track (PNG), in order — or one run directory.
+    #[arg(required = true, value_name = "FRAME.png… | RUN_DIR")]
+    inputs: Vec<PathBuf>,
+    /// Image of the untouched gel (frame 0). A run directory uses its first frame taken
+    /// before contact unless this is given.
+    #[arg(long, value_name = "REF.png")]
+    reference: Option<PathBuf>,
+    /// Where to write markers.csv [default: markers.csv; for a run: RUN_DIR/markers.csv].
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// Also write field pictures (colour-vector PNG, quiver PNG and SVG) and decomposition
+    /// tables per frame into this folder.
+    #[arg(long, value_name = "DIR")]
+    field: Option<PathBuf>,
+    /// Position estimate: centroid, lk (weighted Lucas–Kanade) or centroid+lk.
+    #[arg(long, default_value = "centroid")]
+    method: Method,
+    /// Arrow length per pixel of displacement in quiver plots.
+    #[arg(long, default_value_t = 3.0)]
+    magnify: f64,
+}
+
+impl Cmd {
+    pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
+        let run_dir = match self.inputs.as_slice() {
+            [one] if one.is_dir() => Some(one.clone()),
+            _ => None,
+        };
+        let (input, default_out) = match (run_dir, self.reference) {
+            (Some(dir), reference) => (
+                Input::RunDir {
+                    dir: dir.clone(),
+                    reference,
+                },
+                dir.join("markers.csv"),
+            ),
+            (None, Some(reference)) => (
+                Input::Files {
+                    reference,
+                    frames: self.inputs,
+                },
+                PathBuf::from("markers.csv"),
+            ),
+            (None, None) => {
+                eprintln!(
+                    "error: no reference frame; fix: pass --reference REF.png (an image of the \
+                     untouched gel) before the frames, or give one run directory"
+                );
+                return Ok(ExitCode::from(super::EXIT_INVALID));
+            }
+        };
+        let out = self.out.unwrap_or(default_out);
+        let opts = Options {
+            method: self.method,
+            field_dir: self.field.clone(),
+            magnify: self.magnify,
+        };
+        let summary = match track(&input, &out, &opts) {
+            Ok(s) => s,
+            Err(e @ TrackFailure::Write { .. }) => return Err(e.into()),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Ok(ExitCode::from(super::EXIT_INVALID));
+            }
+        };
+        println!(
+            "tracked {} frames, {} markers (spacing {:.1} px), method {}",
+            summary.frames,
+            summary.markers,
+            summary.spacing_px,
+            match self.method {
+                Method::Centroid => "centroid",
+                Method::Lk => "lk",
+                Method::CentroidLk => "centroid+lk",
+            }
+        );
+        let states: Vec<String> = summary
+            .states
+            .iter()
+            .filter(|(_, n)| *n > 0)
+            .map(|(s, n)| format!("{s} {n}"))
+            .collect();
+        println!("marker states after the reference: {}", states.join(", "));
+        println!(
+            "median {:.3} ms per frame (detection + identity{})",
+            summary.median_ms_per_frame,
+            if self.method == Method::Centroid {
+                ""
+            } else {
+                " + LK"
+            }
+        );
+        if let Some((frame, disp)) = summary.largest {
+            println!("largest deformation: frame {frame}, median displacement {disp:.2} px");
+        }
+        if let Some((rms, worst, n)) = summary.truth {
+            println!(
+                "against the simulator's exact centres: rms {rms:.4} px, worst {worst:.3} px \
+                 ({n} tracked positions)"
+            );
+        }
+        println!("wrote {}", summary.markers_csv.display());
+        if let Some(dir) = &self.field {
+            println!(
+                "wrote field pictures and decomposition tables to {}",
+                dir.display()
+            );
+        }
+        Ok(ExitCode::SUCCESS)
+    }
+}

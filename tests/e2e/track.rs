@@ -1,0 +1,323 @@
+//! `gelrig track` through the binary: on a dry run's frames (the simulator's exact marker
+//! centres are the truth), on PNG files, on the real GelSight Mini sequence when
+//! `../shared/data` is present, and on every kind of bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use crate::support::{col, csv_rows, gelrig, image_size, root, shared_dry_run};
+
+fn track(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(gelrig())
+        .arg("track")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// A copy of a dry run's frames and tables in a fresh folder, so tests never write into
+/// the shared run directory.
+fn copy_run(name: &str, into: &Path) -> PathBuf {
+    let src = shared_dry_run(name);
+    let dst = into.join(name);
+    std::fs::create_dir_all(dst.join("frames")).unwrap();
+    for entry in std::fs::read_dir(&src)
+        .unwrap()
+        .chain(std::fs::read_dir(src.join("frames")).unwrap())
+    {
+        let p = entry.unwrap().path();
+        if p.is_file() {
+            let rel = p.strip_prefix(&src).unwrap();
+            std::fs::copy(&p, dst.join(rel)).unwrap();
+        }
+    }
+    dst
+}
+
+/// The rms figure `gelrig track` prints against the simulator's exact centres.
+fn truth_rms(stdout: &str) -> f64 {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("against the simulator's exact centres"))
+        .unwrap_or_else(|| panic!("no truth line in:\n{stdout}"));
+    line.split("rms ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+#[test]
+fn a_dry_run_directory_tracks_to_the_simulators_exact_centres() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = copy_run("box-shear-sphere", tmp.path());
+    let field = tmp.path().join("field");
+    let o = track(&[run.as_os_str(), "--field".as_ref(), field.as_os_str()]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{out}\n{err}");
+    let rms = truth_rms(&out);
+    assert!(rms < 0.05, "rms {rms} px against the simulator\n{out}");
+
+    // markers.csv: the columns, frame 0 is the reference with zero displacement,
+    // every identity in every frame.
+    let csv = run.join("markers.csv");
+    let header = std::fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .next()
+        .unwrap()
+        .to_string();
+    assert_eq!(header, "frame,id,x_px,y_px,dx_px,dy_px,state");
+    let rows = csv_rows(&csv);
+    let frames = csv_rows(&run.join("frames.csv")).len();
+    let markers = rows.iter().filter(|r| r["frame"] == "0").count();
+    assert_eq!(markers, 288, "the box sensor's 18 × 16 dots");
+    assert_eq!(rows.len(), frames * markers);
+    for r in rows.iter().filter(|r| r["frame"] == "0") {
+        assert_eq!(r["dx_px"].parse::<f64>().unwrap(), 0.0);
+        assert_eq!(r["dy_px"].parse::<f64>().unwrap(), 0.0);
+        assert_eq!(r["state"], "tracked");
+    }
+    let ids = col(&rows, "id");
+    assert!(
+        ids.chunks(markers)
+            .all(|c| c.iter().enumerate().all(|(k, &id)| id as usize == k))
+    );
+    // Shear moves markers: the last frame's largest displacement is well above the noise.
+    let last = &rows[rows.len() - markers..];
+    let moved = col(last, "dx_px")
+        .iter()
+        .zip(col(last, "dy_px"))
+        .map(|(x, y)| x.hypot(y))
+        .fold(0.0, f64::max);
+    assert!(moved > 1.0, "largest displacement {moved} px");
+
+    // The field folder: one colour-vector and one quiver picture per frame, and the tables.
+    for f in [
+        "decomposition.csv",
+        "radial_profile.csv",
+        "central_line.csv",
+    ] {
+        assert!(field.join(f).is_file(), "{f}");
+    }
+    let count = |prefix: &str, ext: &str| {
+        std::fs::read_dir(&field)
+            .unwrap()
+            .filter(|e| {
+                let n = e
+                    .as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .into_owned();
+                n.starts_with(prefix) && n.ends_with(ext)
+            })
+            .count()
+    };
+    assert_eq!(count("field_", ".png"), frames);
+    assert_eq!(count("quiver_", ".png"), frames);
+    assert_eq!(count("quiver_", ".svg"), frames);
+    let decomposition = csv_rows(&field.join("decomposition.csv"));
+    assert_eq!(decomposition.len(), frames);
+}
+
+#[test]
+fn png_files_with_a_reference_give_the_same_tracks_as_the_run_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = copy_run("portable-rotation", tmp.path());
+    let o = track(&[run.as_os_str()]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let from_dir = std::fs::read_to_string(run.join("markers.csv")).unwrap();
+
+    let frames: Vec<PathBuf> = csv_rows(&run.join("frames.csv"))
+        .iter()
+        .map(|r| run.join(&r["file"]))
+        .collect();
+    let out = tmp.path().join("files.csv");
+    let mut args: Vec<&std::ffi::OsStr> = vec!["--reference".as_ref(), frames[0].as_os_str()];
+    args.extend(frames[1..].iter().map(|p| p.as_os_str()));
+    args.extend([
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--method".as_ref(),
+        "centroid".as_ref(),
+    ]);
+    let o = track(&args);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(
+        !stdout.contains("simulator"),
+        "loose files carry no truth:\n{stdout}"
+    );
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), from_dir);
+}
+
+#[test]
+fn every_method_runs_and_lk_stays_close_to_the_truth() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = copy_run("portable-rotation", tmp.path());
+    for method in ["centroid+lk", "lk"] {
+        let out = tmp.path().join(format!("{method}.csv"));
+        let o = track(&[
+            run.as_os_str(),
+            "--method".as_ref(),
+            method.as_ref(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ]);
+        let (stdout, stderr) = text(&o);
+        assert!(o.status.success(), "{method}: {stdout}\n{stderr}");
+        let rms = truth_rms(&stdout);
+        assert!(rms < 0.05, "{method}: rms {rms} px");
+    }
+    let o = track(&[run.as_os_str(), "--method".as_ref(), "sift".as_ref()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).1.contains("centroid"), "{:?}", text(&o));
+}
+
+#[test]
+fn bad_inputs_are_refused_with_the_place_and_the_fix() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = copy_run("portable-rotation", tmp.path());
+    let frame0 = run.join("frames/000000.png");
+    let frame1 = run.join("frames/000001.png");
+    let out = tmp.path().join("markers.csv");
+    let refused = |args: &[&std::ffi::OsStr], needles: &[&str]| {
+        let mut args = args.to_vec();
+        args.extend(["--out".as_ref(), out.as_os_str()]);
+        let o = track(&args);
+        let (out, err) = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}\n{out}\n{err}");
+        for n in needles {
+            assert!(err.contains(n), "{args:?}: {n:?} not in\n{err}");
+        }
+        assert!(!err.contains("panicked"), "{err}");
+    };
+    // Loose frames without a reference.
+    refused(&[frame1.as_os_str()], &["--reference", "fix:"]);
+    // A missing frame.
+    let missing = tmp.path().join("nope.png");
+    refused(
+        &[
+            "--reference".as_ref(),
+            frame0.as_os_str(),
+            missing.as_os_str(),
+        ],
+        &["nope.png", "fix:"],
+    );
+    // Not a PNG.
+    let junk = tmp.path().join("junk.png");
+    std::fs::write(&junk, b"not an image").unwrap();
+    refused(
+        &["--reference".as_ref(), frame0.as_os_str(), junk.as_os_str()],
+        &["junk.png", "PNG", "fix:"],
+    );
+    // A frame of another size.
+    let small = tmp.path().join("small.png");
+    write_png(&small, (320, 240), |_, _| [200, 200, 200]);
+    refused(
+        &[
+            "--reference".as_ref(),
+            frame0.as_os_str(),
+            small.as_os_str(),
+        ],
+        &["small.png", "320", "fix:"],
+    );
+    // A reference that is not a marker image at all (a flat grey frame of the right size).
+    let grey = tmp.path().join("grey.png");
+    let size = image_size(&frame0);
+    write_png(&grey, size, |_, _| [128, 128, 128]);
+    refused(
+        &["--reference".as_ref(), grey.as_os_str(), frame1.as_os_str()],
+        &["grey.png", "fix:"],
+    );
+    // A run directory without its frame table.
+    let bare = tmp.path().join("bare");
+    std::fs::create_dir_all(&bare).unwrap();
+    refused(&[bare.as_os_str()], &["frames.csv", "fix:"]);
+}
+
+#[test]
+fn a_bad_frame_midway_keeps_every_frame_tracked_before_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = copy_run("portable-rotation", tmp.path());
+    let f = |k: usize| run.join(format!("frames/{k:06}.png"));
+    let out = tmp.path().join("partial.csv");
+    let missing = tmp.path().join("gone.png");
+    let o = track(&[
+        "--reference".as_ref(),
+        f(0).as_os_str(),
+        f(1).as_os_str(),
+        f(2).as_os_str(),
+        missing.as_os_str(),
+        f(3).as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
+    let rows = csv_rows(&out);
+    let frames: std::collections::BTreeSet<String> =
+        rows.iter().map(|r| r["frame"].clone()).collect();
+    assert_eq!(frames.into_iter().collect::<Vec<_>>(), ["0", "1", "2"]);
+}
+
+/// Reads ../shared/data (skips when absent).
+#[test]
+fn the_real_mini_sequence_tracks_end_to_end() {
+    let dir = root().join("../shared/data/gelsight-mini-press");
+    if !dir.is_dir() {
+        eprintln!(
+            "skipped: {} is absent (CI has it; a fresh clone does not)",
+            dir.display()
+        );
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let frames: Vec<PathBuf> = (0..219)
+        .map(|k| dir.join(format!("frame_{k:04}.png")))
+        .collect();
+    let out = tmp.path().join("markers.csv");
+    let mut args: Vec<&std::ffi::OsStr> = vec!["--reference".as_ref(), frames[0].as_os_str()];
+    args.extend(frames[1..].iter().map(|p| p.as_os_str()));
+    args.extend(["--out".as_ref(), out.as_os_str()]);
+    let o = track(&args);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    let rows = csv_rows(&out);
+    let markers = rows.iter().filter(|r| r["frame"] == "0").count();
+    assert!(markers >= 75, "{markers} markers");
+    assert_eq!(rows.len(), 219 * markers);
+    let lost = rows.iter().filter(|r| r["state"] == "lost").count();
+    assert_eq!(lost, 0, "no marker of the Mini sequence is ever lost");
+    // The largest deformation is the press-and-shear around frames 90–140.
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("largest deformation"))
+        .unwrap();
+    let frame: u32 = line
+        .split("frame ")
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((90..=140).contains(&frame), "{line}");
+}
+
+fn write_png(path: &Path, (w, h): (u32, u32), px: impl Fn(u32, u32) -> [u8; 3]) {
+    image::RgbImage::from_fn(w, h, |x, y| image::Rgb(px(x, y)))
+        .save(path)
+        .unwrap();
+}

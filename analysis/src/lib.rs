@@ -13,8 +13,17 @@
 //! Modules:
 //! - [`tracking`]: marker detection, identity across frames, weighted Lucas–Kanade.
 //! - [`field`]: dense displacement fields, their pictures and their decomposition.
-//! - [`relaxation`]: F∞ and τ of a step's relaxation by variable projection; Aitken.
+//! - [`relaxation`]: F∞ and τ of a step's relaxation by variable projection, the number
+//!   of terms by BIC, trust flags, time constants pooled over steps, settle error; Aitken.
+//! - [`linearity`]: line fits, the linear range, the power law of curved indenters.
+//! - [`hysteresis`]: loading against unloading.
+//! - [`slip`]: stick, incipient slip and slip per step from three cues.
+//! - [`field_force`]: force from the displacement field against a reference field.
 
 pub mod field;
+pub mod field_force;
+pub mod hysteresis;
+pub mod linearity;
 pub mod relaxation;
+pub mod slip;
 pub mod tracking;

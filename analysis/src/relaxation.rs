@@ -48,6 +48,18 @@ impl ExpFit {
     }
 }
 
+/// Solves the small normal equations by SVD with a relative cut-off, refusing non-finite
+/// input and bounding the iterations: nalgebra's plain `svd` never returns on a matrix
+/// with NaN (an optimiser step to an overflowing τ produces one).
+fn bounded_svd_solve(ata: DMatrix<f64>, aty: &DVector<f64>) -> Option<DVector<f64>> {
+    if !ata.iter().chain(aty.iter()).all(|v| v.is_finite()) {
+        return None;
+    }
+    ata.try_svd(true, true, f64::EPSILON, 500)?
+        .solve(aty, 1e-15)
+        .ok()
+}
+
 /// Least-squares linear parameters [F∞, A…] and the residual for time constants `taus`.
 ///
 /// Forms the (at most 4×4) normal equations in one pass and solves them by SVD with a
@@ -69,7 +81,7 @@ fn linear_part(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(DVector<f64>, DVec
             }
         }
     }
-    let c = ata.svd(true, true).solve(&aty, 1e-15).ok()?;
+    let c = bounded_svd_solve(ata, &aty)?;
     let r = DVector::from_iterator(
         t.len(),
         t.iter().zip(y).map(|(ti, yi)| {
@@ -82,6 +94,61 @@ fn linear_part(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(DVector<f64>, DVec
         }),
     );
     Some((c, r))
+}
+
+/// Levenberg–Marquardt over `theta` (finite-difference Jacobian) for a residual that may
+/// refuse a point (`None`). Returns the last accepted point and whether it converged
+/// (no further decrease possible, or a relative decrease under 1e-14).
+fn levenberg_marquardt(
+    mut theta: Vec<f64>,
+    max_iter: usize,
+    residual: impl Fn(&[f64]) -> Option<DVector<f64>>,
+) -> Option<(Vec<f64>, bool)> {
+    let m = theta.len();
+    let mut r = residual(&theta)?;
+    let mut lambda = 1e-3;
+    for _ in 0..max_iter {
+        let h = 1e-6;
+        let mut jac = DMatrix::zeros(r.len(), m);
+        for k in 0..m {
+            let mut th = theta.clone();
+            th[k] += h;
+            let rp = residual(&th)?;
+            jac.set_column(k, &((rp - &r) / h));
+        }
+        let jtj = jac.transpose() * &jac;
+        let jtr = jac.transpose() * &r;
+        let rss = r.norm_squared();
+        let mut improved = false;
+        let mut converged = false;
+        for _ in 0..30 {
+            let mut a = jtj.clone();
+            for k in 0..m {
+                a[(k, k)] += lambda * jtj[(k, k)].max(1e-300);
+            }
+            let Some(delta) = a.lu().solve(&(-&jtr)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let cand: Vec<f64> = theta.iter().zip(delta.iter()).map(|(a, d)| a + d).collect();
+            if let Some(rc) = residual(&cand)
+                && rc.norm_squared() <= rss
+            {
+                let rel = (rss - rc.norm_squared()) / rss.max(1e-300);
+                converged = rel < 1e-14 || delta.norm() < 1e-12;
+                theta = cand;
+                r = rc;
+                lambda = (lambda / 3.0).max(1e-12);
+                improved = true;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved || converged {
+            return Some((theta, true));
+        }
+    }
+    Some((theta, false))
 }
 
 /// Fits `terms` exponentials to (t, y) by variable projection. `t` must start at the step
@@ -126,7 +193,7 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
                 ata[(a, b)] = ata[(b, a)];
             }
         }
-        let Ok(c) = ata.svd(true, true).solve(&aty, 1e-15) else {
+        let Some(c) = bounded_svd_solve(ata, &aty) else {
             return f64::INFINITY;
         };
         (0..n)
@@ -170,58 +237,12 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
     if !best.0.is_finite() {
         return None;
     }
-    // Levenberg–Marquardt on θ over the projected residual (finite-difference Jacobian).
-    let mut theta = best.1;
-    let mut lambda = 1e-3;
-    let mut converged = false;
+    // Levenberg–Marquardt on θ over the projected residual.
     let residual = |theta: &[f64]| -> Option<DVector<f64>> {
         let taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
         linear_part(t, y, &taus).map(|(_, r)| r)
     };
-    let mut r = residual(&theta)?;
-    for _ in 0..200 {
-        let h = 1e-6;
-        let mut jac = DMatrix::zeros(n, terms);
-        for k in 0..terms {
-            let mut th = theta.clone();
-            th[k] += h;
-            let rp = residual(&th)?;
-            jac.set_column(k, &((rp - &r) / h));
-        }
-        let jtj = jac.transpose() * &jac;
-        let jtr = jac.transpose() * &r;
-        let rss = r.norm_squared();
-        let mut improved = false;
-        for _ in 0..30 {
-            let mut a = jtj.clone();
-            for k in 0..terms {
-                a[(k, k)] += lambda * jtj[(k, k)].max(1e-300);
-            }
-            let Some(delta) = a.lu().solve(&(-&jtr)) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let cand: Vec<f64> = theta.iter().zip(delta.iter()).map(|(a, d)| a + d).collect();
-            if let Some(rc) = residual(&cand)
-                && rc.norm_squared() <= rss
-            {
-                let rel = (rss - rc.norm_squared()) / rss.max(1e-300);
-                theta = cand;
-                r = rc;
-                lambda = (lambda / 3.0).max(1e-12);
-                improved = true;
-                if rel < 1e-14 || delta.norm() < 1e-12 {
-                    converged = true;
-                }
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved || converged {
-            converged = converged || !improved;
-            break;
-        }
-    }
+    let (mut theta, converged) = levenberg_marquardt(best.1, 200, residual)?;
     // Order by τ, then a Gauss–Newton polish over all parameters with the exact Jacobian.
     theta.sort_by(|a, b| a.total_cmp(b));
     let taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
@@ -298,6 +319,233 @@ pub fn aitken(f1: f64, f2: f64, f3: f64) -> Option<f64> {
     Some((f1 * f3 - f2 * f2) / den)
 }
 
+/// One step's relaxation: the model chosen by the data, F∞ with its uncertainty, and
+/// every reason not to trust it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepRelaxation {
+    /// Exponential terms the Bayesian information criterion chose (0: no relaxation above
+    /// the noise, F∞ is the mean).
+    pub terms: usize,
+    /// Equilibrium value.
+    pub f_inf: f64,
+    /// Standard error of `f_inf` (Jacobian; see `issues` for when it understates).
+    pub sigma_f_inf: f64,
+    /// Time constants, s, increasing.
+    pub taus_s: Vec<f64>,
+    /// Amplitudes, in the order of `taus_s`.
+    pub amplitudes: Vec<f64>,
+    /// The thesis's quasistatic value: the mean of the last `window_s` of the record.
+    pub window_mean: f64,
+    /// Rms residual of the chosen model.
+    pub rms: f64,
+    /// Why the numbers are not confident (empty: confident).
+    pub issues: Vec<String>,
+    /// The chosen fit, for plotting (`None` when `terms` is 0).
+    pub fit: Option<ExpFit>,
+}
+
+impl StepRelaxation {
+    /// Whether F∞ and τ can be quoted as measured.
+    pub fn confident(&self) -> bool {
+        self.issues.is_empty()
+    }
+}
+
+/// BIC = n ln(RSS/n) + p ln n (Schwarz 1978), p = 2·terms + 1.
+fn bic(rss: f64, n: usize, terms: usize) -> f64 {
+    let n_f = n as f64;
+    n_f * (rss.max(1e-300) / n_f).ln() + (2 * terms + 1) as f64 * n_f.ln()
+}
+
+/// Analyses one step's force record `f` at times `t_s` (t = 0 at the end of the move,
+/// increasing): fits 0–`max_terms` exponentials, keeps the one the BIC prefers, and flags
+/// ill-conditioned cases — a record shorter than 2τ_slow (F∞ extrapolated; spec §4),
+/// time constants closer than 2× (not separable), τ below two samples, an unconverged or
+/// ill-conditioned fit, too few samples — instead of returning them as confident numbers.
+pub fn analyse_step(t_s: &[f64], f: &[f64], window_s: f64, max_terms: usize) -> StepRelaxation {
+    let n = t_s.len().min(f.len());
+    let (t_s, f) = (&t_s[..n], &f[..n]);
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let t_end = t_s.last().copied().unwrap_or(0.0);
+    let window: Vec<f64> = t_s
+        .iter()
+        .zip(f)
+        .filter(|(t, _)| **t >= t_end - window_s)
+        .map(|(_, v)| *v)
+        .collect();
+    let window_mean = if window.is_empty() {
+        f64::NAN
+    } else {
+        mean(&window)
+    };
+    let m = mean(f);
+    let rss0: f64 = f.iter().map(|v| (v - m).powi(2)).sum();
+    let mut best = StepRelaxation {
+        terms: 0,
+        f_inf: m,
+        sigma_f_inf: (rss0 / (n.max(2) - 1) as f64 / n.max(1) as f64).sqrt(),
+        taus_s: Vec::new(),
+        amplitudes: Vec::new(),
+        window_mean,
+        rms: (rss0 / n.max(1) as f64).sqrt(),
+        issues: Vec::new(),
+        fit: None,
+    };
+    if n < 10 {
+        best.issues
+            .push(format!("only {n} samples: too short a record to fit"));
+        return best;
+    }
+    let mut best_bic = bic(rss0, n, 0);
+    for terms in 1..=max_terms {
+        let Some(fit) = fit_exponentials(t_s, f, terms) else {
+            continue;
+        };
+        // A term with a non-positive time constant or a vanishing amplitude adds nothing.
+        if fit.taus_s.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+            continue;
+        }
+        let b = bic(fit.rss, n, terms);
+        if b < best_bic - 2.0 {
+            best_bic = b;
+            best = StepRelaxation {
+                terms,
+                f_inf: fit.f_inf,
+                sigma_f_inf: fit.sigma_f_inf,
+                taus_s: fit.taus_s.clone(),
+                amplitudes: fit.amplitudes.clone(),
+                window_mean,
+                rms: (fit.rss / n as f64).sqrt(),
+                issues: Vec::new(),
+                fit: Some(fit),
+            };
+        }
+    }
+    let dt = t_end / (n - 1) as f64;
+    if let Some(fit) = &best.fit {
+        let slow = fit.taus_s.last().copied().unwrap_or(0.0);
+        if t_end < 2.0 * slow {
+            best.issues.push(format!(
+                "record {t_end:.0} s is shorter than 2τ_slow = {:.0} s: F∞ is extrapolated and \
+                 its σ understated; settle longer",
+                2.0 * slow
+            ));
+        }
+        for w in fit.taus_s.windows(2) {
+            if w[1] < 2.0 * w[0] {
+                best.issues.push(format!(
+                    "time constants {:.3} s and {:.3} s are closer than 2×: not separable",
+                    w[0], w[1]
+                ));
+            }
+        }
+        if fit.taus_s[0] < 2.0 * dt {
+            best.issues.push(format!(
+                "τ {:.3} s is below two sample intervals ({:.3} s)",
+                fit.taus_s[0],
+                2.0 * dt
+            ));
+        }
+        if !fit.converged {
+            best.issues.push("the fit did not converge".into());
+        }
+        if fit.condition > 1e10 || !fit.sigma_f_inf.is_finite() {
+            best.issues.push(format!(
+                "ill-conditioned fit (condition {:.1e}): parameters not identifiable",
+                fit.condition
+            ));
+        }
+    }
+    best
+}
+
+/// Time constants shared by several steps of one run (the material's), with each step's
+/// own F∞ and amplitudes: variable projection over the stacked records.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SharedFit {
+    /// Time constants, s, increasing.
+    pub taus_s: Vec<f64>,
+    /// Per record: F∞ then the amplitudes.
+    pub linear: Vec<Vec<f64>>,
+    /// Total residual sum of squares.
+    pub rss: f64,
+    /// Total samples.
+    pub n: usize,
+}
+
+/// Fits `terms` time constants shared by all `records` (each (t, y) with t = 0 at the end
+/// of its move), starting from `start_taus_s`. Pooling steps is what makes three
+/// time constants identifiable from 3-minute records: each step alone sees the slowest
+/// one for barely 3τ. Returns `None` for degenerate input.
+pub fn fit_shared(records: &[(&[f64], &[f64])], start_taus_s: &[f64]) -> Option<SharedFit> {
+    let terms = start_taus_s.len();
+    if terms == 0 || records.is_empty() {
+        return None;
+    }
+    let residual = |theta: &[f64]| -> Option<(DVector<f64>, Vec<Vec<f64>>)> {
+        let taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
+        let mut all = Vec::new();
+        let mut lin = Vec::new();
+        for (t, y) in records {
+            let (c, r) = linear_part(t, y, &taus)?;
+            all.extend(r.iter().copied());
+            lin.push(c.iter().copied().collect());
+        }
+        Some((DVector::from_vec(all), lin))
+    };
+    let theta0: Vec<f64> = start_taus_s.iter().map(|t| t.max(1e-6).ln()).collect();
+    let (theta, _) = levenberg_marquardt(theta0, 100, |th| residual(th).map(|(r, _)| r))?;
+    let (r, lin) = residual(&theta)?;
+    let mut order: Vec<usize> = (0..terms).collect();
+    order.sort_by(|&a, &b| theta[a].total_cmp(&theta[b]));
+    Some(SharedFit {
+        taus_s: order.iter().map(|&k| theta[k].exp()).collect(),
+        linear: lin
+            .into_iter()
+            .map(|c| {
+                std::iter::once(c[0])
+                    .chain(order.iter().map(|&k| c[k + 1]))
+                    .collect()
+            })
+            .collect(),
+        rss: r.norm_squared(),
+        n: r.len(),
+    })
+}
+
+/// The quasistatic estimate's error against how long the step had waited: for each wait
+/// `w` in `waits_s`, the mean of the `window_s` before `w` minus `reference` (F∞ of the
+/// step's fit, or the simulator's true equilibrium). A wait up to 1 % past the record's
+/// end (the move took that long) counts as the end; later waits give NaN.
+pub fn settle_error(
+    t_s: &[f64],
+    f: &[f64],
+    window_s: f64,
+    waits_s: &[f64],
+    reference: f64,
+) -> Vec<f64> {
+    let t_end = t_s.last().copied().unwrap_or(0.0);
+    waits_s
+        .iter()
+        .map(|&w| {
+            if w > 1.01 * t_end + 1e-9 || w < window_s {
+                return f64::NAN;
+            }
+            let w = w.min(t_end);
+            let (sum, k) = t_s
+                .iter()
+                .zip(f)
+                .filter(|(t, _)| **t > w - window_s && **t <= w + 1e-9)
+                .fold((0.0, 0usize), |(s, k), (_, v)| (s + v, k + 1));
+            if k == 0 {
+                f64::NAN
+            } else {
+                sum / k as f64 - reference
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -368,5 +616,120 @@ mod tests {
                 "T {t_end}: RMSE {rmse:.2e} vs σ̂ {median:.2e}"
             );
         }
+    }
+
+    fn three_terms(t_end: f64, hz: f64, noise: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let d = Normal::new(0.0, noise).expect("σ > 0");
+        let n = (t_end * hz).round() as usize + 1;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 / hz).collect();
+        let y = t
+            .iter()
+            .map(|t| {
+                2.0 + 0.5 * (-t / 1.5).exp()
+                    + 0.4 * (-t / 15.0).exp()
+                    + 0.3 * (-t / 60.0).exp()
+                    + d.sample(&mut rng)
+            })
+            .collect();
+        (t, y)
+    }
+
+    #[test]
+    fn the_information_criterion_picks_the_terms_the_data_hold() {
+        // Three well-separated terms over 4τ_slow at 20 Hz: three terms, confident.
+        let (t, y) = three_terms(240.0, 20.0, 0.005, 1);
+        let s = analyse_step(&t, &y, 10.0, 3);
+        assert_eq!(s.terms, 3, "{s:?}");
+        assert!(s.confident(), "{:?}", s.issues);
+        for (got, want) in s.taus_s.iter().zip([1.5, 15.0, 60.0]) {
+            assert!((got / want - 1.0).abs() < 0.1, "τ {got} vs {want}");
+        }
+        assert!(
+            (s.f_inf - 2.0).abs() < 3.0 * s.sigma_f_inf.max(1e-3),
+            "{}",
+            s.f_inf
+        );
+        // The last-window mean still carries e^{-4}·0.3 of the slow term.
+        assert!(s.window_mean > 2.0);
+    }
+
+    #[test]
+    fn noise_only_is_no_relaxation_and_short_records_are_flagged() {
+        let mut rng = StdRng::seed_from_u64(2);
+        let d = Normal::new(0.0, 0.01).expect("σ > 0");
+        let t: Vec<f64> = (0..2000).map(|i| i as f64 * 0.05).collect();
+        let y: Vec<f64> = t.iter().map(|_| 3.0 + d.sample(&mut rng)).collect();
+        let s = analyse_step(&t, &y, 10.0, 3);
+        assert_eq!(s.terms, 0, "noise only: {s:?}");
+        assert!((s.f_inf - 3.0).abs() < 0.002);
+        // 30 s of a 60 s relaxation: the slow term cannot be pinned down.
+        let (t, y) = three_terms(30.0, 20.0, 0.002, 3);
+        let s = analyse_step(&t, &y, 10.0, 3);
+        assert!(!s.confident(), "{s:?}");
+        assert!(
+            s.issues.iter().any(|i| i.contains("shorter than 2τ_slow")),
+            "{:?}",
+            s.issues
+        );
+        // Two nearly equal time constants are reported as not separable, or merged.
+        let t: Vec<f64> = (0..4000).map(|i| i as f64 * 0.05).collect();
+        let y: Vec<f64> = t
+            .iter()
+            .map(|t| 1.0 + 0.3 * (-t / 10.0).exp() + 0.3 * (-t / 12.0).exp())
+            .collect();
+        let s = analyse_step(&t, &y, 10.0, 3);
+        assert!(
+            s.terms == 1 || s.issues.iter().any(|i| i.contains("not separable")),
+            "{s:?}"
+        );
+        // Too few samples.
+        let s = analyse_step(&[0.0, 1.0, 2.0], &[1.0, 1.0, 1.0], 1.0, 3);
+        assert!(!s.confident());
+    }
+
+    #[test]
+    fn shared_time_constants_from_several_short_steps() {
+        // Twenty 180 s steps (as box-normal-flat) with different F∞, same τ, noise like a
+        // Nano17's.
+        let mut rng = StdRng::seed_from_u64(5);
+        let d = Normal::new(0.0, 0.0125).expect("σ > 0");
+        let t: Vec<f64> = (0..3600).map(|i| i as f64 * 0.05).collect();
+        let ys: Vec<Vec<f64>> = (1..=20)
+            .map(|k| {
+                let a = k as f64;
+                t.iter()
+                    .map(|t| {
+                        a + 0.25 * (-t / 1.5).exp()
+                            + 0.2 * (-t / 15.0).exp()
+                            + 0.15 * (-t / 60.0).exp()
+                            + d.sample(&mut rng)
+                    })
+                    .collect()
+            })
+            .collect();
+        let recs: Vec<(&[f64], &[f64])> = ys.iter().map(|y| (&t[..], &y[..])).collect();
+        let fit = fit_shared(&recs, &[1.0, 10.0, 40.0]).expect("fits");
+        for (got, want) in fit.taus_s.iter().zip([1.5, 15.0, 60.0]) {
+            assert!((got / want - 1.0).abs() < 0.05, "τ {got} vs {want}");
+        }
+        for (k, lin) in fit.linear.iter().enumerate() {
+            assert!((lin[0] - (k + 1) as f64).abs() < 0.01, "F∞ {}", lin[0]);
+        }
+    }
+
+    #[test]
+    fn settle_error_shrinks_with_the_wait() {
+        let t: Vec<f64> = (0..=3600).map(|i| i as f64 * 0.05).collect();
+        let y: Vec<f64> = t.iter().map(|t| 1.0 + 0.2 * (-t / 30.0).exp()).collect();
+        let e = settle_error(&t, &y, 10.0, &[20.0, 60.0, 180.0, 400.0], 1.0);
+        assert!(e[0] > e[1] && e[1] > e[2] && e[2] > 0.0, "{e:?}");
+        assert!(e[3].is_nan());
+        // Mean of e^{-t/30} over (170, 180] ≈ 0.2·e^{-175/30}.
+        assert!(
+            (e[2] - 0.2 * (-175.0f64 / 30.0).exp()).abs() < 1e-4,
+            "{}",
+            e[2]
+        );
     }
 }

@@ -14,6 +14,7 @@ pub mod plan;
 pub mod progress;
 pub mod protocol;
 pub mod record;
+pub mod report;
 pub mod runner;
 pub mod runs;
 pub mod track;

@@ -7,6 +7,7 @@
 mod dry_run;
 mod physics;
 mod plan;
+mod report;
 mod signals;
 mod support;
 mod track;

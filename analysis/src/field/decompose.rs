@@ -316,6 +316,65 @@ pub fn median_magnitude(field: &MarkerField) -> Option<f64> {
     median(&mut m)
 }
 
+/// Mean displacement component along `dir` of the measured markers within `radius_px` of
+/// `centre_px` (the gel under the contact centre, slip cue (c)). `None` if none.
+pub fn mean_along_within(
+    field: &MarkerField,
+    centre_px: [f64; 2],
+    dir: [f64; 2],
+    radius_px: f64,
+) -> Option<f64> {
+    let v: Vec<f64> = field
+        .measured_ids()
+        .filter(|&i| {
+            let p = field.reference_px[i];
+            (p[0] - centre_px[0]).hypot(p[1] - centre_px[1]) <= radius_px
+        })
+        .map(|i| {
+            let u = field.displacement_px[i];
+            u[0] * dir[0] + u[1] * dir[1]
+        })
+        .collect();
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+/// Central-line displacement along `dir` near the contact centre (|s| < 0.4a) over that
+/// near the contact edge (0.7a < |s| < 1.0a), using markers within `half_width_px` of the
+/// line through `centre_px` along `dir` (slip cue (b), thesis Fig. 4-13). `None` when
+/// either part has no marker or the edge barely moved.
+pub fn centre_over_edge(
+    field: &MarkerField,
+    centre_px: [f64; 2],
+    dir: [f64; 2],
+    contact_radius_px: f64,
+    half_width_px: f64,
+) -> Option<f64> {
+    let a = contact_radius_px;
+    let (mut centre, mut edge) = (Vec::new(), Vec::new());
+    for i in field.measured_ids() {
+        let p = field.reference_px[i];
+        let (dx, dy) = (p[0] - centre_px[0], p[1] - centre_px[1]);
+        let along = dx * dir[0] + dy * dir[1];
+        let across = -dx * dir[1] + dy * dir[0];
+        if across.abs() > half_width_px {
+            continue;
+        }
+        let u = field.displacement_px[i];
+        let m = u[0] * dir[0] + u[1] * dir[1];
+        if along.abs() < 0.4 * a {
+            centre.push(m);
+        } else if along.abs() > 0.7 * a && along.abs() < a {
+            edge.push(m);
+        }
+    }
+    if centre.is_empty() || edge.is_empty() {
+        return None;
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let e = mean(&edge);
+    (e.abs() > 1e-3).then(|| mean(&centre) / e)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -424,5 +483,26 @@ mod tests {
         );
         assert!(!pure.measured[5]);
         assert_eq!(median_magnitude(&pure), Some(2.0));
+    }
+
+    #[test]
+    fn slip_cues_from_a_stuck_and_a_slipping_contact() {
+        let c = [150.0, 120.0];
+        // Stuck: everything within 60 px moves 3 px along x, decaying outside.
+        let stuck = grid_field(|p| {
+            let r = (p[0] - c[0]).hypot(p[1] - c[1]);
+            [if r <= 60.0 { 3.0 } else { 3.0 * 60.0 / r }, 0.0]
+        });
+        let m = mean_along_within(&stuck, c, [1.0, 0.0], 30.0).expect("markers");
+        assert!((m - 3.0).abs() < 1e-12);
+        let r = centre_over_edge(&stuck, c, [1.0, 0.0], 60.0, 12.0).expect("ratio");
+        assert!((r - 1.0).abs() < 1e-12, "{r}");
+        // Partial slip: the edge lags the centre.
+        let slipping = grid_field(|p| {
+            let r = (p[0] - c[0]).hypot(p[1] - c[1]);
+            [3.0 * (1.0 - 0.4 * (r / 60.0).min(1.0).powi(2)), 0.0]
+        });
+        let r = centre_over_edge(&slipping, c, [1.0, 0.0], 60.0, 12.0).expect("ratio");
+        assert!(r > 1.1, "{r}");
     }
 }

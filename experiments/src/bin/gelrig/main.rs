@@ -35,6 +35,8 @@ enum Command {
     Schema(cmd::schema::Cmd),
     /// Track GelSight markers in frames or a run: markers.csv, optional field pictures.
     Track(cmd::track::Cmd),
+    /// Analyse a run: relaxation, linearity, hysteresis, slip, force from field; report.html.
+    Report(cmd::report::Cmd),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +48,7 @@ fn main() -> ExitCode {
         Command::Runs(c) => c.run(),
         Command::Schema(c) => c.run(),
         Command::Track(c) => c.run(),
+        Command::Report(c) => c.run(),
     };
     match result {
         Ok(code) => code,

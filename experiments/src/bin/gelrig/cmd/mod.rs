@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub(crate) mod plan;
+pub(crate) mod report;
 pub(crate) mod run;
 pub(crate) mod runs;
 pub(crate) mod schema;

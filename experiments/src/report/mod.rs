@@ -1,0 +1,234 @@
+//! `gelrig report`: a run directory turned into the thesis's results.
+//!
+//! This module does the I/O — read the run's tables, track its frames when `markers.csv`
+//! is missing, build the reference fields from the run's own protocol — and hands numbers
+//! to the pure analyses in [`analysis`]; [`write`] renders what comes back as
+//! `report/report.html` (self-contained), `report/report.md`, SVG/PNG plots and
+//! `report/summary.json`. Sections appear only where they apply: a run without frames has
+//! no field sections, a run that never unloads no hysteresis, a normal-only run no slip.
+
+mod analyse;
+pub mod plots;
+mod write;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+pub use analyse::Report;
+
+/// Why a report could not be made. Whatever was written before the failure stays.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// The run directory lacks a table every report needs.
+    #[error("{path}: {detail}; fix: point gelrig report at a run directory made by `gelrig run`")]
+    Missing {
+        /// The missing or unreadable file.
+        path: PathBuf,
+        /// What went wrong.
+        detail: String,
+    },
+    /// A table has a malformed row.
+    #[error(
+        "{path}, row {row}: {detail}; fix: the file was edited or truncated — restore it from the run"
+    )]
+    Malformed {
+        /// The table.
+        path: PathBuf,
+        /// 1-based data row.
+        row: usize,
+        /// The parse error.
+        detail: String,
+    },
+    /// Writing the report failed.
+    #[error("cannot write {path}: {detail}; fix: check that the folder is writable")]
+    Write {
+        /// The output.
+        path: PathBuf,
+        /// What went wrong.
+        detail: String,
+    },
+}
+
+/// One row of `steps.csv` (only what the report reads).
+#[derive(Debug, Clone, Deserialize)]
+pub(crate) struct StepRow {
+    pub step: u32,
+    pub trial: u32,
+    pub phase: String,
+    pub axis: String,
+    pub position: Option<f64>,
+    pub unit: String,
+    pub fx_n: f64,
+    pub fy_n: f64,
+    pub fz_n: f64,
+    pub tz_nmm: f64,
+    pub settle_s: f64,
+    pub force_window_s: f64,
+    pub t_start_ns: u64,
+    pub settle_end_ns: u64,
+}
+
+/// One row of `force.csv`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+pub(crate) struct ForceRow {
+    pub t_ns: u64,
+    pub step: u32,
+    pub fx_n: f64,
+    pub fy_n: f64,
+    pub fz_n: f64,
+    pub tz_nmm: f64,
+}
+
+/// One row of `sim_steps.csv` (simulated runs).
+#[derive(Debug, Clone, Deserialize)]
+pub(crate) struct SimRow {
+    pub step: u32,
+    pub fz_eq_n: f64,
+    pub fx_eq_n: f64,
+    pub tz_eq_nmm: f64,
+    pub shear_slips: u32,
+    pub twist_slips: u32,
+    pub shear_stick_fraction: Option<f64>,
+    pub twist_stick_fraction: Option<f64>,
+}
+
+/// One row of `frames.csv`.
+#[derive(Debug, Clone, Deserialize)]
+pub(crate) struct FrameRow {
+    pub frame: u64,
+    pub step: u32,
+}
+
+/// One row of `markers.csv`.
+#[derive(Debug, Clone, Deserialize)]
+pub(crate) struct MarkerRow {
+    pub frame: u64,
+    pub id: usize,
+    pub x_px: f64,
+    pub y_px: f64,
+    pub dx_px: f64,
+    pub dy_px: f64,
+    pub state: String,
+}
+
+/// Everything read from a run directory.
+#[derive(Debug, Clone)]
+pub(crate) struct RunData {
+    pub dir: PathBuf,
+    pub protocol_name: String,
+    pub steps: Vec<StepRow>,
+    pub force: Vec<ForceRow>,
+    pub sim: Option<Vec<SimRow>>,
+    pub frames: Vec<FrameRow>,
+    /// Markers by frame number.
+    pub markers: BTreeMap<u64, Vec<MarkerRow>>,
+    /// Frame size, px, when frames exist.
+    pub frame_size: Option<(usize, usize)>,
+}
+
+fn read_csv<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<Vec<T>, ReportError> {
+    let mut r = csv::Reader::from_path(path).map_err(|e| ReportError::Missing {
+        path: path.to_path_buf(),
+        detail: e.to_string(),
+    })?;
+    r.deserialize()
+        .enumerate()
+        .map(|(k, row)| {
+            row.map_err(|e| ReportError::Malformed {
+                path: path.to_path_buf(),
+                row: k + 1,
+                detail: e.to_string(),
+            })
+        })
+        .collect()
+}
+
+fn read_optional<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<Option<Vec<T>>, ReportError> {
+    if path.is_file() {
+        read_csv(path).map(Some)
+    } else {
+        Ok(None)
+    }
+}
+
+/// Reads the run, tracking its frames into `markers.csv` first if that is missing.
+pub(crate) fn read_run(dir: &Path) -> Result<RunData, ReportError> {
+    if !dir.is_dir() {
+        return Err(ReportError::Missing {
+            path: dir.to_path_buf(),
+            detail: "not a directory".into(),
+        });
+    }
+    let manifest = crate::record::read_manifest(dir).map_err(|detail| ReportError::Missing {
+        path: dir.join("run.yaml"),
+        detail,
+    })?;
+    let steps: Vec<StepRow> = read_csv(&dir.join("steps.csv"))?;
+    let force: Vec<ForceRow> = read_optional(&dir.join("force.csv"))?.unwrap_or_default();
+    let sim = read_optional(&dir.join("sim_steps.csv"))?;
+    let frames: Vec<FrameRow> = read_optional(&dir.join("frames.csv"))?.unwrap_or_default();
+    let mut markers = BTreeMap::new();
+    let mut frame_size = None;
+    if frames.len() > 1 {
+        let path = dir.join("markers.csv");
+        if !path.is_file() {
+            crate::track::track(
+                &crate::track::Input::RunDir {
+                    dir: dir.to_path_buf(),
+                    reference: None,
+                },
+                &path,
+                &crate::track::Options::default(),
+            )
+            .map_err(|e| ReportError::Missing {
+                path: path.clone(),
+                detail: format!("tracking the run's frames failed: {e}"),
+            })?;
+        }
+        for m in read_csv::<MarkerRow>(&path)? {
+            markers.entry(m.frame).or_insert_with(Vec::new).push(m);
+        }
+        frame_size = first_frame_size(dir);
+    }
+    Ok(RunData {
+        dir: dir.to_path_buf(),
+        protocol_name: manifest.protocol,
+        steps,
+        force,
+        sim,
+        frames,
+        markers,
+        frame_size,
+    })
+}
+
+fn first_frame_size(dir: &Path) -> Option<(usize, usize)> {
+    let rows: Vec<BTreeMap<String, String>> = read_csv(&dir.join("frames.csv")).ok()?;
+    let file = rows.first()?.get("file")?;
+    let (w, h) = image::image_dimensions(dir.join(file)).ok()?;
+    Some((w as usize, h as usize))
+}
+
+/// Where the report went and its headline numbers.
+#[derive(Debug, Clone)]
+pub struct Written {
+    /// The report folder.
+    pub dir: PathBuf,
+    /// Section titles present, in order.
+    pub sections: Vec<String>,
+    /// The summary that went into `summary.json`.
+    pub summary: serde_json::Value,
+}
+
+/// Makes the report of `run_dir` into `run_dir/report/` (or `out`).
+pub fn report(run_dir: &Path, out: Option<&Path>) -> Result<Written, ReportError> {
+    let data = read_run(run_dir)?;
+    let model = analyse::reference_model(&data);
+    let report = analyse::analyse(&data, model);
+    let dir = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| run_dir.join("report"));
+    write::write(&data, &report, &dir)
+}

@@ -1,0 +1,995 @@
+//! The report on disk: plots (SVG + PNG), `report.md`, a self-contained `report.html`
+//! and `summary.json`.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use base64::Engine as _;
+use serde_json::{Value, json};
+
+use super::analyse::{Block, Kind, Report};
+use super::plots::{Chart, Mark, SIZE, Series, rgb, svg};
+use super::{ReportError, RunData, Written};
+
+fn werr(path: &Path) -> impl Fn(String) -> ReportError + '_ {
+    move |detail| ReportError::Write {
+        path: path.to_path_buf(),
+        detail,
+    }
+}
+
+/// A section of the report: a title, markdown text and plots.
+struct Section {
+    title: String,
+    text: String,
+    plots: Vec<String>,
+}
+
+struct Out {
+    dir: PathBuf,
+    sections: Vec<Section>,
+}
+
+impl Out {
+    /// Writes `name.svg` and `name.png` and returns the name.
+    fn plot(&self, name: &str, chart: &Chart) -> Result<String, ReportError> {
+        let s = svg(chart).map_err(werr(&self.dir.join(format!("{name}.svg"))))?;
+        let p = self.dir.join(format!("{name}.svg"));
+        fs::write(&p, s).map_err(|e| werr(&p)(e.to_string()))?;
+        let px = rgb(chart).map_err(werr(&self.dir.join(format!("{name}.png"))))?;
+        let p = self.dir.join(format!("{name}.png"));
+        image::RgbImage::from_raw(SIZE.0, SIZE.1, px)
+            .ok_or_else(|| werr(&p)("plot buffer size".into()))?
+            .save(&p)
+            .map_err(|e| werr(&p)(e.to_string()))?;
+        Ok(name.to_string())
+    }
+}
+
+fn f(v: f64, digits: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.digits$}")
+    } else {
+        "—".into()
+    }
+}
+
+fn num(v: f64) -> Value {
+    if v.is_finite() { json!(v) } else { Value::Null }
+}
+
+pub(super) fn write(data: &RunData, r: &Report, dir: &Path) -> Result<Written, ReportError> {
+    fs::create_dir_all(dir).map_err(|e| werr(dir)(e.to_string()))?;
+    let mut out = Out {
+        dir: dir.to_path_buf(),
+        sections: Vec::new(),
+    };
+    let mut summary = json!({
+        "run": {"dir": data.dir.display().to_string(), "protocol": data.protocol_name,
+                "steps": data.steps.len(), "frames": data.frames.len(), "simulated": data.sim.is_some()},
+    });
+    force_time(data, &mut out)?;
+    let main = r
+        .blocks
+        .iter()
+        .enumerate()
+        .max_by_key(|(_, b)| b.steps.len())
+        .map(|(k, _)| k);
+    let mut blocks_json = Vec::new();
+    for (k, b) in r.blocks.iter().enumerate() {
+        let j = block_sections(data, r, b, k, &mut out)?;
+        if Some(k) == main {
+            for key in ["linearity", "hysteresis", "slip", "force_from_field"] {
+                if let Some(v) = j.get(key) {
+                    summary[key] = v.clone();
+                }
+            }
+        }
+        blocks_json.push(j);
+    }
+    summary["blocks"] = Value::Array(blocks_json);
+    if let (Some(slope), Some(lin)) = (r.sim_slope, summary.get_mut("linearity")) {
+        lin["sim_slope"] = num(slope);
+    }
+    relaxation_section(r, &mut out, &mut summary)?;
+    if let Some(note) = &r.model_note {
+        summary["notes"] = json!([note]);
+    }
+    let sections: Vec<String> = out.sections.iter().map(|s| s.title.clone()).collect();
+    summary["sections"] = json!(sections);
+    let p = dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| werr(&p)(e.to_string()))?;
+    fs::write(&p, text).map_err(|e| werr(&p)(e.to_string()))?;
+    write_md(data, &out)?;
+    write_html(data, &out)?;
+    Ok(Written {
+        dir: dir.to_path_buf(),
+        sections,
+        summary,
+    })
+}
+
+fn force_time(data: &RunData, out: &mut Out) -> Result<(), ReportError> {
+    if data.force.is_empty() {
+        return Ok(());
+    }
+    // At most ~4000 points per channel: every k-th sample.
+    let k = (data.force.len() / 4000).max(1);
+    let pts = |g: &dyn Fn(&super::ForceRow) -> f64| -> Vec<(f64, f64)> {
+        data.force
+            .iter()
+            .step_by(k)
+            .map(|r| (r.t_ns as f64 * 1e-9, g(r)))
+            .collect()
+    };
+    let chart = Chart {
+        title: "Force against time (shaded: steps)".into(),
+        x_label: "time (s)".into(),
+        y_label: "force (N), torque (N·mm)".into(),
+        series: vec![
+            Series {
+                name: "Fz".into(),
+                points: pts(&|r| r.fz_n),
+                mark: Mark::Line,
+                colour: 0,
+            },
+            Series {
+                name: "Fx".into(),
+                points: pts(&|r| r.fx_n),
+                mark: Mark::Line,
+                colour: 1,
+            },
+            Series {
+                name: "Fy".into(),
+                points: pts(&|r| r.fy_n),
+                mark: Mark::Line,
+                colour: 2,
+            },
+            Series {
+                name: "Tz".into(),
+                points: pts(&|r| r.tz_nmm),
+                mark: Mark::Line,
+                colour: 3,
+            },
+        ],
+        bands: data
+            .steps
+            .iter()
+            .map(|s| (s.t_start_ns as f64 * 1e-9, s.settle_end_ns as f64 * 1e-9))
+            .collect(),
+        ..Default::default()
+    };
+    let name = out.plot("force_time", &chart)?;
+    out.sections.push(Section {
+        title: "Force against time".into(),
+        text: format!(
+            "{} force samples over {} steps; shaded bands are the steps (move, settle, capture).\n",
+            data.force.len(),
+            data.steps.len()
+        ),
+        plots: vec![name],
+    });
+    Ok(())
+}
+
+fn block_sections(
+    data: &RunData,
+    r: &Report,
+    b: &Block,
+    k: usize,
+    out: &mut Out,
+) -> Result<Value, ReportError> {
+    let unit = b.unit.as_str();
+    let fu = b.kind.force_unit();
+    let tag = format!("block{}_{}", k + 1, b.kind.name());
+    let mut j = json!({"kind": b.kind.name(), "unit": unit, "force_unit": fu,
+        "steps": b.steps.iter().map(|s| s.step).collect::<Vec<_>>()});
+    let load_pts: Vec<(f64, f64)> = b
+        .steps
+        .iter()
+        .filter(|s| !s.unloading)
+        .map(|s| (s.load, s.force))
+        .collect();
+    let unload_pts: Vec<(f64, f64)> = b
+        .steps
+        .iter()
+        .filter(|s| s.unloading)
+        .map(|s| (s.load, s.force))
+        .collect();
+    // Linearity.
+    if let Some(lin) = &b.linearity {
+        let (x0, x1) = load_pts
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
+                (a.0.min(p.0), a.1.max(p.0))
+            });
+        let line = |l: &analysis::linearity::LineFit| {
+            vec![
+                (x0.min(0.0), l.slope * x0.min(0.0) + l.intercept),
+                (x1, l.slope * x1 + l.intercept),
+            ]
+        };
+        let mut series = vec![
+            Series {
+                name: "loading".into(),
+                points: load_pts.clone(),
+                mark: Mark::Points,
+                colour: 0,
+            },
+            Series {
+                name: format!("fit, slope {} {fu}/{unit}", f(lin.with_intercept.slope, 3)),
+                points: line(&lin.with_intercept),
+                mark: Mark::Line,
+                colour: 3,
+            },
+        ];
+        if !unload_pts.is_empty() {
+            series.insert(
+                1,
+                Series {
+                    name: "unloading".into(),
+                    points: unload_pts.clone(),
+                    mark: Mark::Points,
+                    colour: 1,
+                },
+            );
+        }
+        if let Some(p) = &lin.power_law {
+            let curve: Vec<(f64, f64)> = (0..=60)
+                .map(|i| x0 + (x1 - x0) * i as f64 / 60.0)
+                .map(|d| (d, p.k * (d + p.d0).powf(p.n)))
+                .collect();
+            series.push(Series {
+                name: format!("F = {}·(d + {})^{}", f(p.k, 2), f(p.d0, 3), f(p.n, 2)),
+                points: curve,
+                mark: Mark::Line,
+                colour: 2,
+            });
+        }
+        let markers = lin
+            .range
+            .as_ref()
+            .map(|rg| {
+                vec![(
+                    rg.end_x,
+                    format!("linear range ends ({} %)", rg.tolerance * 100.0),
+                )]
+            })
+            .unwrap_or_default();
+        let name = out.plot(
+            &format!("{tag}_force_load"),
+            &Chart {
+                title: format!("{} force against load", b.kind.name()),
+                x_label: format!("load ({unit})"),
+                y_label: b.kind.force_label().into(),
+                series,
+                markers,
+                ..Default::default()
+            },
+        )?;
+        let rg = lin.range.as_ref();
+        let mut text = format!(
+            "| fit | slope ({fu}/{unit}) | intercept ({fu}) | R² |\n|---|---|---|---|\n| linear range, with intercept | {} | {} | {} |\n| linear range, through origin | {} | 0 | {} |\n| every loading step, with intercept | {} | {} | {} |\n\n",
+            f(lin.with_intercept.slope, 4),
+            f(lin.with_intercept.intercept, 4),
+            f(lin.with_intercept.r2, 5),
+            f(lin.through_origin.slope, 4),
+            f(lin.through_origin.r2, 5),
+            f(lin.all.slope, 4),
+            f(lin.all.intercept, 4),
+            f(lin.all.r2, 5)
+        );
+        if let Some(rg) = rg {
+            let _ = writeln!(
+                text,
+                "Linear range (within {} % of the first three steps' slope {} {fu}/{unit}): up to **{} {unit}** ({} of {} loading steps).\n",
+                rg.tolerance * 100.0,
+                f(rg.initial_slope, 3),
+                f(rg.end_x, 3),
+                rg.points,
+                load_pts.len()
+            );
+        }
+        if let Some(p) = &lin.power_law {
+            let _ = writeln!(
+                text,
+                "Power law F = k·(d + d0)ⁿ: k = {}, n = {}, d0 = {} {unit} (contact found after the indenter had entered by d0), R² = {}.\n",
+                f(p.k, 3),
+                f(p.n, 3),
+                f(p.d0, 4),
+                f(p.r2, 5)
+            );
+        }
+        if let Some(slope) = r
+            .sim_slope
+            .filter(|_| b.steps.len() == r.blocks.iter().map(|b| b.steps.len()).max().unwrap_or(0))
+        {
+            let _ = writeln!(
+                text,
+                "Simulator's equilibrium slope over the same range: {} {fu}/{unit} (recovered {:+.2} %).\n",
+                f(slope, 4),
+                100.0 * (lin.with_intercept.slope / slope - 1.0)
+            );
+        }
+        if let Some(d) = &lin.displacement_vs_force {
+            let _ = writeln!(
+                text,
+                "Mean marker displacement against force: {} px per {fu}, R² = {}.\n",
+                f(d.slope, 4),
+                f(d.r2, 4)
+            );
+        }
+        let mut plots = vec![name];
+        if b.displacement_px.iter().any(Option::is_some) {
+            let pts = |g: fn((f64, f64)) -> f64, unloading: bool| -> Vec<(f64, f64)> {
+                b.steps
+                    .iter()
+                    .zip(&b.displacement_px)
+                    .filter(|(s, _)| s.unloading == unloading)
+                    .filter_map(|(s, d)| d.map(|d| (s.force, g(d))))
+                    .collect()
+            };
+            let mut series = vec![
+                Series {
+                    name: "mean, loading".into(),
+                    points: pts(|d| d.0, false),
+                    mark: Mark::LinePoints,
+                    colour: 0,
+                },
+                Series {
+                    name: "max, loading".into(),
+                    points: pts(|d| d.1, false),
+                    mark: Mark::LinePoints,
+                    colour: 2,
+                },
+            ];
+            if !unload_pts.is_empty() {
+                series.push(Series {
+                    name: "mean, unloading".into(),
+                    points: pts(|d| d.0, true),
+                    mark: Mark::LinePoints,
+                    colour: 1,
+                });
+            }
+            plots.push(out.plot(
+                &format!("{tag}_displacement_force"),
+                &Chart {
+                    title: "marker displacement against force".into(),
+                    x_label: b.kind.force_label().into(),
+                    y_label: "marker displacement (px)".into(),
+                    series,
+                    ..Default::default()
+                },
+            )?);
+        }
+        j["linearity"] = json!({
+            "slope": num(lin.with_intercept.slope), "intercept": num(lin.with_intercept.intercept), "r2": num(lin.with_intercept.r2),
+            "slope_through_origin": num(lin.through_origin.slope), "r2_through_origin": num(lin.through_origin.r2),
+            "slope_all": num(lin.all.slope), "r2_all": num(lin.all.r2),
+            "linear_range": rg.map(|r| num(r.end_x)), "linear_range_points": rg.map(|r| r.points),
+            "initial_slope": rg.map(|r| num(r.initial_slope)), "tolerance": rg.map(|r| r.tolerance),
+            "residuals": lin.with_intercept.residuals.iter().map(|v| num(*v)).collect::<Vec<_>>(),
+            "power_law": lin.power_law.as_ref().map(|p| json!({"k": num(p.k), "n": num(p.n), "d0": num(p.d0), "r2": num(p.r2)})),
+            "displacement_px_per_force": lin.displacement_vs_force.as_ref().map(|d| num(d.slope)),
+        });
+        out.sections.push(Section {
+            title: format!("Linearity — {} (block {})", b.kind.name(), k + 1),
+            text,
+            plots,
+        });
+    }
+    // Hysteresis.
+    if let Some(h) = &b.hysteresis {
+        let mut text = format!(
+            "| | loop area | max gap | at | residual at zero load |\n|---|---|---|---|---|\n| force–load | {} {fu}·{unit} | {} {fu} | {} {unit} | {} {fu} |\n",
+            f(h.loop_area, 5),
+            f(h.max_gap, 4),
+            f(h.max_gap_at, 3),
+            f(h.residual_at_zero, 4)
+        );
+        if let Some(d) = &b.displacement_hysteresis {
+            let _ = writeln!(
+                text,
+                "| displacement–force | {} px·{fu} | {} {fu} | {} px | {} px |",
+                f(d.loop_area, 4),
+                f(d.max_gap, 4),
+                f(d.max_gap_at, 3),
+                f(d.residual_at_zero, 4)
+            );
+        }
+        let mut loop_pts = load_pts.clone();
+        loop_pts.extend(unload_pts.iter().copied());
+        let name = out.plot(
+            &format!("{tag}_hysteresis"),
+            &Chart {
+                title: "hysteresis loop".into(),
+                x_label: format!("load ({unit})"),
+                y_label: b.kind.force_label().into(),
+                series: vec![
+                    Series {
+                        name: "loading".into(),
+                        points: load_pts.clone(),
+                        mark: Mark::LinePoints,
+                        colour: 0,
+                    },
+                    Series {
+                        name: "unloading".into(),
+                        points: unload_pts.clone(),
+                        mark: Mark::LinePoints,
+                        colour: 1,
+                    },
+                ],
+                ..Default::default()
+            },
+        )?;
+        j["hysteresis"] = json!({"loop_area": num(h.loop_area), "max_gap": num(h.max_gap), "max_gap_at": num(h.max_gap_at),
+            "residual_at_zero": num(h.residual_at_zero),
+            "displacement_force": b.displacement_hysteresis.as_ref().map(|d| json!({"loop_area": num(d.loop_area), "max_gap": num(d.max_gap), "residual_at_zero": num(d.residual_at_zero)}))});
+        out.sections.push(Section {
+            title: format!("Hysteresis — {} (block {})", b.kind.name(), k + 1),
+            text,
+            plots: vec![name],
+        });
+    }
+    // Slip.
+    if let Some(s) = &b.slip {
+        let load: Vec<&super::analyse::BlockStep> =
+            b.steps.iter().filter(|s| !s.unloading).collect();
+        let mut text = String::from(
+            "| step | load | force | (a) force | (b) central line | (c) contact | state |\n|---|---|---|---|---|---|---|\n",
+        );
+        let opt = |v: Option<analysis::slip::State>| v.map_or("—", |s| s.as_str());
+        for (st, v) in load.iter().zip(&s.report.steps) {
+            let _ = writeln!(
+                text,
+                "| {} | {} {unit} | {} {fu} | {} | {} | {} | **{}** |",
+                st.step,
+                f(st.load, 3),
+                f(st.force, 3),
+                v.force.as_str(),
+                opt(v.central_line),
+                opt(v.contact),
+                v.state.as_str()
+            );
+        }
+        let step_of = |i: Option<usize>| i.and_then(|i| load.get(i)).map(|s| s.step);
+        let onset = step_of(s.report.onset);
+        let incipient = step_of(s.report.incipient);
+        let cues = ["force", "central line", "contact centre"];
+        let firsts: Vec<String> = s
+            .report
+            .first_by_cue
+            .iter()
+            .zip(cues)
+            .map(|(i, c)| {
+                format!(
+                    "{c}: {}",
+                    step_of(*i).map_or("never".into(), |s| format!("step {s}"))
+                )
+            })
+            .collect();
+        let agreed: Vec<&str> = {
+            let all: Vec<Option<u32>> = s.report.first_by_cue.iter().map(|i| step_of(*i)).collect();
+            cues.iter()
+                .zip(&all)
+                .filter(|(_, v)| {
+                    v.is_some() && v.zip(incipient).is_some_and(|(a, b)| a.abs_diff(b) <= 1)
+                })
+                .map(|(c, _)| *c)
+                .collect()
+        };
+        let _ = writeln!(
+            text,
+            "\nIncipient slip from step {}, slip from step {}. First step each cue saw slip: {}. Cues agreeing (within one step) on the incipient step: {}.",
+            incipient.map_or("—".into(), |v| v.to_string()),
+            onset.map_or("—".into(), |v| v.to_string()),
+            firsts.join(", "),
+            if agreed.is_empty() {
+                "none".into()
+            } else {
+                agreed.join(", ")
+            }
+        );
+        match (s.mu, &s.mu_note) {
+            (Some(mu), _) => {
+                let _ = writeln!(
+                    text,
+                    "\nFriction coefficient estimate μ = **{}** (largest tangential/normal ratio up to the slip onset{}).",
+                    f(mu, 3),
+                    if b.kind == Kind::Rotation {
+                        ", via T = μPaπ/4"
+                    } else {
+                        ""
+                    }
+                );
+            }
+            (None, Some(n)) => {
+                let _ = writeln!(text, "\nμ: {n}.");
+            }
+            _ => {}
+        }
+        if let Some(sim) = s.sim_onset_step {
+            let _ = writeln!(text, "\nSimulator's slip onset: step {sim}.");
+        }
+        let colour_of = |st: analysis::slip::State| st as usize;
+        let mut series = Vec::new();
+        for st in [
+            analysis::slip::State::Stick,
+            analysis::slip::State::Incipient,
+            analysis::slip::State::Slip,
+        ] {
+            let pts: Vec<(f64, f64)> = load
+                .iter()
+                .zip(&s.report.steps)
+                .filter(|(_, v)| v.state == st)
+                .map(|(s, _)| (s.load, s.force))
+                .collect();
+            if !pts.is_empty() {
+                series.push(Series {
+                    name: st.as_str().into(),
+                    points: pts,
+                    mark: Mark::Points,
+                    colour: [2, 1, 3][colour_of(st)],
+                });
+            }
+        }
+        let name = out.plot(
+            &format!("{tag}_slip"),
+            &Chart {
+                title: "slip state per step".into(),
+                x_label: format!("load ({unit})"),
+                y_label: b.kind.force_label().into(),
+                series,
+                ..Default::default()
+            },
+        )?;
+        j["slip"] = json!({"onset_step": onset, "incipient_step": incipient, "mu": s.mu.map(num), "mu_note": s.mu_note,
+            "sim_onset_step": s.sim_onset_step, "cues_agreed": agreed,
+            "first_step_by_cue": {"force": step_of(s.report.first_by_cue[0]), "central_line": step_of(s.report.first_by_cue[1]), "contact": step_of(s.report.first_by_cue[2])},
+            "steps": load.iter().zip(&s.report.steps).map(|(st, v)| json!({"step": st.step, "state": v.state.as_str(), "force": v.force.as_str(),
+                "central_line": v.central_line.map(|c| c.as_str()), "contact": v.contact.map(|c| c.as_str())})).collect::<Vec<_>>()});
+        out.sections.push(Section {
+            title: format!("Slip — {} (block {})", b.kind.name(), k + 1),
+            text,
+            plots: vec![name],
+        });
+    }
+    // Fields: profiles and force from field.
+    if !b.profiles.is_empty() || b.field_force.is_some() {
+        let mut plots = Vec::new();
+        let mut text = String::new();
+        if !b.profiles.is_empty() {
+            let every = (b.profiles.len() / 6).max(1);
+            let series: Vec<Series> = b
+                .profiles
+                .iter()
+                .step_by(every)
+                .enumerate()
+                .map(|(i, (step, p))| Series {
+                    name: format!("step {step}"),
+                    points: p.clone(),
+                    mark: Mark::LinePoints,
+                    colour: i,
+                })
+                .collect();
+            let (title, x) = if b.kind == Kind::Normal {
+                (
+                    "radial displacement profile u_r(r)",
+                    "distance from the contact centre (mm)",
+                )
+            } else {
+                (
+                    "shear-direction displacement on the central line",
+                    "position on the central line (mm)",
+                )
+            };
+            plots.push(out.plot(
+                &format!("{tag}_profiles"),
+                &Chart {
+                    title: title.into(),
+                    x_label: x.into(),
+                    y_label: "displacement (mm)".into(),
+                    series,
+                    ..Default::default()
+                },
+            )?);
+        }
+        if let Some(ff) = &b.field_force {
+            let p = &ff.prediction;
+            let recorded: Vec<(f64, f64)> =
+                b.steps.iter().map(|s| (s.step as f64, s.force)).collect();
+            let pred: Vec<(f64, f64)> = b
+                .steps
+                .iter()
+                .zip(&p.predicted)
+                .zip(&p.calibration)
+                .filter(|(_, c)| !**c)
+                .map(|((s, v), _)| (s.step as f64, *v))
+                .collect();
+            let cal: Vec<(f64, f64)> = b
+                .steps
+                .iter()
+                .zip(&p.predicted)
+                .zip(&p.calibration)
+                .filter(|(_, c)| **c)
+                .map(|((s, v), _)| (s.step as f64, *v))
+                .collect();
+            plots.push(out.plot(
+                &format!("{tag}_force_from_field"),
+                &Chart {
+                    title: "force from the displacement field".into(),
+                    x_label: "step".into(),
+                    y_label: b.kind.force_label().into(),
+                    series: vec![
+                        Series {
+                            name: "recorded".into(),
+                            points: recorded,
+                            mark: Mark::LinePoints,
+                            colour: 0,
+                        },
+                        Series {
+                            name: "from field (calibration steps)".into(),
+                            points: cal,
+                            mark: Mark::Points,
+                            colour: 2,
+                        },
+                        Series {
+                            name: "from field (predicted)".into(),
+                            points: pred,
+                            mark: Mark::Points,
+                            colour: 3,
+                        },
+                    ],
+                    ..Default::default()
+                },
+            )?);
+            let _ = writeln!(
+                text,
+                "Force from the field (thesis §4.3–4.4): weighted least-squares scale of the measured {} against the reference field of this contact from `mechanics`, thesis reliability weights; scale→force calibrated on every other step ({} of {}), predicted on the rest: **RMSE {} {fu} ({} %)**; gain {} {fu} per unit scale.",
+                if b.kind == Kind::Normal {
+                    "radial field"
+                } else {
+                    "pure-shear field along the shear direction"
+                },
+                p.calibration.iter().filter(|c| **c).count(),
+                p.calibration.len(),
+                f(p.rmse, 4),
+                f(p.rmse_pct, 2),
+                f(p.gain, 4)
+            );
+            j["force_from_field"] = json!({"rmse_n": num(p.rmse), "rmse_pct": num(p.rmse_pct), "map": format!("{:?}", p.map).to_lowercase(), "gain": num(p.gain), "bias": num(p.bias),
+                "scales": ff.scales.iter().map(|v| num(*v)).collect::<Vec<_>>(), "predicted": p.predicted.iter().map(|v| num(*v)).collect::<Vec<_>>(),
+                "calibration": p.calibration});
+        }
+        let field_pics = field_pictures(data, b, out)?;
+        plots.extend(field_pics);
+        out.sections.push(Section {
+            title: format!("Displacement field — {} (block {})", b.kind.name(), k + 1),
+            text,
+            plots,
+        });
+    }
+    Ok(j)
+}
+
+/// Quiver pictures of the block's last loading step, from the tracked markers.
+fn field_pictures(data: &RunData, b: &Block, out: &Out) -> Result<Vec<String>, ReportError> {
+    let Some(s) = b
+        .steps
+        .iter()
+        .filter(|s| !s.unloading)
+        .max_by(|a, c| a.force.abs().total_cmp(&c.force.abs()))
+    else {
+        return Ok(Vec::new());
+    };
+    let Some(frame) = data
+        .frames
+        .iter()
+        .filter(|f| f.step == s.step)
+        .map(|f| f.frame)
+        .max()
+    else {
+        return Ok(Vec::new());
+    };
+    let (Some(field), Some((w, h))) = (super::analyse::frame_field(data, frame), data.frame_size)
+    else {
+        return Ok(Vec::new());
+    };
+    let max = field
+        .measured_ids()
+        .map(|i| field.displacement_px[i][0].hypot(field.displacement_px[i][1]))
+        .fold(0.0, f64::max);
+    let q = analysis::field::picture::Quiver {
+        frame_px: (w, h),
+        zoom: 1.0,
+        magnify: (20.0 / max.max(1e-3)).clamp(1.0, 20.0),
+        spacing_px: super::analyse::spacing_px(&field),
+    };
+    let name = format!("field_step{}", s.step);
+    let svg_text = analysis::field::picture::quiver_svg(&field, &q)
+        .map_err(|e| werr(&out.dir)(e.to_string()))?;
+    let p = out.dir.join(format!("{name}.svg"));
+    fs::write(&p, svg_text).map_err(|e| werr(&p)(e.to_string()))?;
+    Ok(vec![format!("{name}.svg")])
+}
+
+fn relaxation_section(r: &Report, out: &mut Out, summary: &mut Value) -> Result<(), ReportError> {
+    if r.relaxation.is_empty() {
+        return Ok(());
+    }
+    let mut text = String::from(
+        "F(t) = F∞ + Σ Aᵢ·exp(−t/τᵢ), 0–3 terms chosen by BIC, fitted by variable projection from the end of each move; the thesis's value is the mean of the last force window.\n\n| step | terms | F∞ | σ(F∞) | τ (s) | last-window mean | truth | trust |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for s in &r.relaxation {
+        let taus: Vec<String> = s.fit.taus_s.iter().map(|t| f(*t, 2)).collect();
+        let _ = writeln!(
+            text,
+            "| {} | {} | {} | {} | {} | {} | {} | {} |",
+            s.step,
+            s.fit.terms,
+            f(s.fit.f_inf, 4),
+            f(s.fit.sigma_f_inf, 4),
+            if taus.is_empty() {
+                "—".into()
+            } else {
+                taus.join(", ")
+            },
+            f(s.fit.window_mean, 4),
+            s.truth.map_or("—".into(), |t| f(t, 4)),
+            if s.fit.confident() {
+                "confident".into()
+            } else {
+                s.fit.issues.join("; ")
+            }
+        );
+    }
+    if let Some(sh) = &r.shared {
+        let _ = writeln!(
+            text,
+            "\nTime constants shared by all relaxing steps (pooled variable projection): **τ = {} s**.",
+            sh.taus_s
+                .iter()
+                .map(|t| f(*t, 3))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let mut plots = Vec::new();
+    // A few steps' records with their fits, relative to F∞, on a log scale.
+    let picks: Vec<&super::analyse::StepRelax> = r
+        .relaxation
+        .iter()
+        .filter(|s| s.fit.terms >= 1)
+        .step_by((r.relaxation.len() / 4).max(1))
+        .take(4)
+        .collect();
+    if !picks.is_empty() {
+        let mut series = Vec::new();
+        for (i, s) in picks.iter().enumerate() {
+            let every = (s.t_s.len() / 600).max(1);
+            let sign = if s.fit.amplitudes.iter().sum::<f64>() < 0.0 {
+                -1.0
+            } else {
+                1.0
+            };
+            series.push(Series {
+                name: format!("step {} data", s.step),
+                points: s
+                    .t_s
+                    .iter()
+                    .zip(&s.f)
+                    .step_by(every)
+                    .map(|(t, v)| (*t, sign * (v - s.fit.f_inf)))
+                    .collect(),
+                mark: Mark::Points,
+                colour: i,
+            });
+            if let Some(fit) = &s.fit.fit {
+                series.push(Series {
+                    name: format!("step {} fit", s.step),
+                    points: s
+                        .t_s
+                        .iter()
+                        .step_by(every)
+                        .map(|t| (*t, sign * (fit.eval(*t) - s.fit.f_inf)))
+                        .collect(),
+                    mark: Mark::Line,
+                    colour: i,
+                });
+            }
+        }
+        plots.push(out.plot(
+            "relaxation",
+            &Chart {
+                title: "relaxation: |F(t) − F∞| with fits".into(),
+                x_label: "time since the end of the move (s)".into(),
+                y_label: "|F − F∞| (N or N·mm)".into(),
+                series,
+                log_y: true,
+                ..Default::default()
+            },
+        )?);
+    }
+    let mut settle_json = Value::Null;
+    if let Some(sc) = &r.settle {
+        let _ = writeln!(
+            text,
+            "\n**Settle error against settle time** (mean of a {} s window ending at the wait, against F∞; median over steps):\n\n| wait (s) | against F∞ | % of relaxation | against the simulator's equilibrium |\n|---|---|---|---|",
+            10
+        );
+        for (k, w) in sc.waits_s.iter().enumerate() {
+            let _ = writeln!(
+                text,
+                "| {} | {} | {} | {} |",
+                w,
+                f(sc.median_abs_vs_fit[k], 4),
+                f(sc.median_pct_vs_fit[k], 2),
+                sc.median_abs_vs_truth
+                    .as_ref()
+                    .map_or("—".into(), |v| f(v[k], 4))
+            );
+        }
+        let mut series = vec![Series {
+            name: "against fitted F∞".into(),
+            points: sc
+                .waits_s
+                .iter()
+                .copied()
+                .zip(sc.median_abs_vs_fit.iter().copied())
+                .collect(),
+            mark: Mark::LinePoints,
+            colour: 0,
+        }];
+        if let Some(t) = &sc.median_abs_vs_truth {
+            series.push(Series {
+                name: "against the simulator's equilibrium".into(),
+                points: sc.waits_s.iter().copied().zip(t.iter().copied()).collect(),
+                mark: Mark::LinePoints,
+                colour: 3,
+            });
+        }
+        plots.push(out.plot(
+            "settle_error",
+            &Chart {
+                title: "quasistatic error against settle time".into(),
+                x_label: "settle time (s)".into(),
+                y_label: "median |error| (N or N·mm)".into(),
+                series,
+                log_y: true,
+                ..Default::default()
+            },
+        )?);
+        settle_json = json!({"waits_s": sc.waits_s, "median_abs_error_vs_fit": sc.median_abs_vs_fit.iter().map(|v| num(*v)).collect::<Vec<_>>(),
+            "median_pct_of_relaxation": sc.median_pct_vs_fit.iter().map(|v| num(*v)).collect::<Vec<_>>(),
+            "median_abs_error_vs_truth": sc.median_abs_vs_truth.as_ref().map(|v| v.iter().map(|x| num(*x)).collect::<Vec<_>>())});
+    }
+    summary["relaxation"] = json!({
+        "tau_s": r.relaxation.iter().map(|s| s.fit.taus_s.clone()).collect::<Vec<_>>(),
+        "shared_tau_s": r.shared.as_ref().map(|s| s.taus_s.clone()),
+        "steps": r.relaxation.iter().map(|s| json!({"step": s.step, "terms": s.fit.terms, "f_inf": num(s.fit.f_inf), "sigma_f_inf": num(s.fit.sigma_f_inf),
+            "tau_s": s.fit.taus_s, "amplitudes": s.fit.amplitudes, "window_mean": num(s.fit.window_mean), "truth": s.truth.map(num),
+            "confident": s.fit.confident(), "issues": s.fit.issues})).collect::<Vec<_>>(),
+    });
+    summary["settle"] = settle_json;
+    out.sections.push(Section {
+        title: "Relaxation and settling".into(),
+        text,
+        plots,
+    });
+    Ok(())
+}
+
+fn write_md(data: &RunData, out: &Out) -> Result<(), ReportError> {
+    let mut md = format!(
+        "# Report: {}\n\nRun `{}`.\n\n",
+        data.protocol_name,
+        data.dir.display()
+    );
+    for s in &out.sections {
+        let _ = writeln!(md, "## {}\n\n{}", s.title, s.text);
+        for p in &s.plots {
+            let file = if p.ends_with(".svg") {
+                p.clone()
+            } else {
+                format!("{p}.svg")
+            };
+            let _ = writeln!(md, "![{}]({file})\n", p.trim_end_matches(".svg"));
+        }
+    }
+    let p = out.dir.join("report.md");
+    fs::write(&p, md).map_err(|e| werr(&p)(e.to_string()))
+}
+
+/// Minimal markdown → HTML for what the sections contain: tables, bold, paragraphs.
+fn md_to_html(text: &str) -> String {
+    let esc = |s: &str| {
+        s.replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+    };
+    let bold = |s: String| {
+        let mut o = String::new();
+        for (i, part) in s.split("**").enumerate() {
+            if i % 2 == 1 {
+                let _ = write!(o, "<b>{part}</b>");
+            } else {
+                o.push_str(part);
+            }
+        }
+        o
+    };
+    let mut html = String::new();
+    let mut in_table = false;
+    for line in text.lines() {
+        let l = line.trim();
+        if l.starts_with('|') {
+            if l.starts_with("|---") {
+                continue;
+            }
+            let cells: Vec<String> = l
+                .trim_matches('|')
+                .split('|')
+                .map(|c| bold(esc(c.trim())))
+                .collect();
+            let tag = if in_table { "td" } else { "th" };
+            if !in_table {
+                html.push_str("<table>");
+                in_table = true;
+            }
+            let _ = write!(
+                html,
+                "<tr>{}</tr>",
+                cells
+                    .iter()
+                    .map(|c| format!("<{tag}>{c}</{tag}>"))
+                    .collect::<String>()
+            );
+        } else {
+            if in_table {
+                html.push_str("</table>\n");
+                in_table = false;
+            }
+            if !l.is_empty() {
+                let _ = writeln!(html, "<p>{}</p>", bold(esc(l)));
+            }
+        }
+    }
+    if in_table {
+        html.push_str("</table>\n");
+    }
+    html
+}
+
+fn write_html(data: &RunData, out: &Out) -> Result<(), ReportError> {
+    let mut html = format!(
+        "<!doctype html><html><head><meta charset=\"utf-8\"><title>gelrig report: {}</title><style>body{{font-family:sans-serif;max-width:980px;margin:auto;padding:1em}}table{{border-collapse:collapse;margin:.5em 0}}td,th{{border:1px solid #ccc;padding:2px 8px;font-size:90%}}img{{max-width:100%}}</style></head><body><h1>Report: {}</h1><p>Run <code>{}</code></p>",
+        data.protocol_name,
+        data.protocol_name,
+        data.dir.display()
+    );
+    for s in &out.sections {
+        let _ = write!(html, "<h2>{}</h2>{}", s.title, md_to_html(&s.text));
+        for p in &s.plots {
+            let file = if p.ends_with(".svg") {
+                out.dir.join(p)
+            } else {
+                out.dir.join(format!("{p}.png"))
+            };
+            let bytes = fs::read(&file).map_err(|e| werr(&file)(e.to_string()))?;
+            let mime = if p.ends_with(".svg") {
+                "image/svg+xml"
+            } else {
+                "image/png"
+            };
+            let _ = write!(
+                html,
+                "<p><img alt=\"{p}\" src=\"data:{mime};base64,{}\"></p>",
+                base64::engine::general_purpose::STANDARD.encode(bytes)
+            );
+        }
+    }
+    html.push_str("</body></html>\n");
+    let p = out.dir.join("report.html");
+    fs::write(&p, html).map_err(|e| werr(&p)(e.to_string()))
+}

@@ -9,6 +9,7 @@
 //!
 //! The `gelrig` binary is a thin CLI over these modules.
 
+pub mod bench;
 pub mod diag;
 pub mod plan;
 pub mod progress;

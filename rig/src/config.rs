@@ -107,6 +107,22 @@ pub struct AxisConfig {
     /// How often to poll position while moving (default 20 Hz).
     #[serde(default)]
     pub poll_rate: Option<Frequency>,
+    /// Serial device of a `zaber` axis (`/dev/ttyUSB0`; a twin's `/dev/pts/N`).
+    #[serde(default)]
+    pub port: Option<String>,
+    /// Zaber device address on the daisy chain (default 1).
+    #[serde(default)]
+    pub device: Option<u8>,
+    /// Zaber axis number on the device (default 1).
+    #[serde(default)]
+    pub axis_number: Option<u8>,
+    /// Size of one microstep in the axis unit: 0.000047625 mm on Zaber lead-screw stages,
+    /// 0.000234375 deg on X-RSW rotary stages.
+    #[serde(default)]
+    pub microstep: Option<f64>,
+    /// Zaber LRC checksums on every message (default true).
+    #[serde(default)]
+    pub checksum: Option<bool>,
 }
 
 impl AxisConfig {
@@ -132,6 +148,10 @@ impl AxisConfig {
 pub enum AxisDriver {
     /// The in-process simulated stage (travel, speed, resolution, reference state).
     Sim,
+    /// A Zaber stage speaking the ASCII protocol on `port` (needs `microstep`).
+    Zaber,
+    /// A hand-turned micrometer: gelrig prompts the operator on the terminal.
+    Manual,
 }
 
 /// The force/torque sensor.
@@ -146,6 +166,12 @@ pub struct ForceConfig {
     /// Highest rate the sensor delivers samples at (default 1 kHz).
     #[serde(default)]
     pub max_rate: Option<Frequency>,
+    /// Net F/T box address, `host` or `host:rdt_port` (RDT port default 49152).
+    #[serde(default)]
+    pub address: Option<String>,
+    /// Net F/T calibration (TCP) port, default 49151.
+    #[serde(default)]
+    pub calibration_port: Option<u16>,
 }
 
 /// Force sensor drivers available in this build.
@@ -154,6 +180,8 @@ pub struct ForceConfig {
 pub enum ForceDriver {
     /// The in-process simulated Nano17 reading the simulated elastomer.
     Sim,
+    /// An ATI Net F/T box: RDT over UDP at `address`, calibration read from the box.
+    NetFt,
 }
 
 /// Force/torque sensor models with known ranges.
@@ -193,6 +221,12 @@ pub struct CameraConfig {
     pub height: u32,
     /// Frame rate.
     pub fps: Frequency,
+    /// Folder of an `image_folder` camera.
+    #[serde(default)]
+    pub path: Option<String>,
+    /// Loop an `image_folder` camera's frames.
+    #[serde(default)]
+    pub repeat: Option<bool>,
 }
 
 /// Camera drivers available in this build.
@@ -201,6 +235,8 @@ pub struct CameraConfig {
 pub enum CameraDriver {
     /// Renders the simulated elastomer's markers.
     Sim,
+    /// Replays the PNG frames of `path` (a recorded sequence) at `fps`.
+    ImageFolder,
 }
 
 /// What applies disturbances to a grasped object.
@@ -370,6 +406,46 @@ impl RigConfig {
                 fix: "write e.g. `width: 640, height: 480, fps: 25 Hz`".into(),
             });
         }
+        for (role, axis) in &self.axes {
+            let at = YamlPath::root().key("axes").key(role.name());
+            if matches!(axis.driver, AxisDriver::Zaber) {
+                if axis.port.is_none() {
+                    issues.push(ConfigIssue {
+                        path: at.key("driver"),
+                        message: "a zaber axis needs the serial port it is on".into(),
+                        fix: "add `port: /dev/ttyUSB0` (or the path `gelrig sim serve` printed)"
+                            .into(),
+                    });
+                }
+                if !axis.microstep.is_some_and(|m| m > 0.0) {
+                    issues.push(ConfigIssue {
+                        path: at.key("driver"),
+                        message: "a zaber axis needs its microstep size".into(),
+                        fix: "add `microstep: 0.000047625` (mm, lead-screw stages) or `0.000234375` (deg, X-RSW)".into(),
+                    });
+                }
+            }
+        }
+        if let Some(f) = &self.force
+            && matches!(f.driver, ForceDriver::NetFt)
+            && f.address.is_none()
+        {
+            issues.push(ConfigIssue {
+                path: YamlPath::root().key("force").key("driver"),
+                message: "a net_ft sensor needs the box's address".into(),
+                fix: "add `address: 192.168.1.1` (or `host:port`)".into(),
+            });
+        }
+        if let Some(c) = &self.camera
+            && matches!(c.driver, CameraDriver::ImageFolder)
+            && c.path.is_none()
+        {
+            issues.push(ConfigIssue {
+                path: YamlPath::root().key("camera").key("driver"),
+                message: "an image_folder camera needs the folder of frames".into(),
+                fix: "add `path: ../shared/data/gelsight-mini-press`".into(),
+            });
+        }
         if self.uses_sim() && self.sim.is_none() {
             issues.push(ConfigIssue {
                 path: YamlPath::root().key("name"),
@@ -394,6 +470,9 @@ impl RigConfig {
                 .camera
                 .as_ref()
                 .is_some_and(|c| matches!(c.driver, CameraDriver::Sim))
-            || self.disturber.is_some()
+            || self
+                .disturber
+                .as_ref()
+                .is_some_and(|d| matches!(d.driver, DisturberDriver::Sim))
     }
 }

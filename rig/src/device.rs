@@ -30,6 +30,23 @@ pub struct AxisInfo {
     pub identity: String,
 }
 
+impl AxisInfo {
+    /// Refuses a target outside the travel before anything is sent to the device.
+    pub fn check_target(&self, target: f64) -> Result<(), RigError> {
+        if (self.travel_min..=self.travel_max).contains(&target) {
+            Ok(())
+        } else {
+            Err(RigError::OutOfTravel {
+                axis: self.role.clone(),
+                target,
+                min: self.travel_min,
+                max: self.travel_max,
+                unit: self.unit,
+            })
+        }
+    }
+}
+
 /// A snapshot of an axis.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct AxisStatus {

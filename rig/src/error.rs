@@ -68,6 +68,18 @@ pub enum RigError {
         /// What was wrong.
         detail: String,
     },
+    /// A device refused a command (Zaber `RJ`, SMC100 `TE`, a Modbus exception).
+    #[error(
+        "{device} refused `{command}`: {reason}; fix: check the axis limits and state with `gelrig probe`"
+    )]
+    Rejected {
+        /// Device description.
+        device: String,
+        /// The command.
+        command: String,
+        /// The device's reason.
+        reason: String,
+    },
     /// The rig file asks for something this build or this bench cannot do.
     #[error("{device}: {detail}")]
     Unsupported {

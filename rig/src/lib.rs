@@ -13,9 +13,11 @@
 pub mod clock;
 pub mod config;
 pub mod device;
+pub mod drivers;
 pub mod error;
 pub mod open;
 pub mod sim;
+pub mod twins;
 pub mod units;
 
 pub use clock::{Clock, ClockMode};
@@ -28,6 +30,6 @@ pub use open::{OpenRequest, OpenedDevice, Rig, open};
 
 /// Locks a mutex shared between simulated devices, recovering from poisoning: a panic in
 /// one device must not take the rest of the bench (and the run's data) down with it.
-pub(crate) fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+pub fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }

@@ -142,6 +142,26 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                 };
                 Box::new(SimAxis::new(*role, info, p, req.clock.clone()))
             }
+            AxisDriver::Zaber => {
+                // `RigConfig::check` guarantees port and microstep.
+                let settings = crate::drivers::zaber::ZaberSettings {
+                    port: cfg.port.clone().unwrap_or_default(),
+                    device: cfg.device.unwrap_or(1),
+                    axis: cfg.axis_number.unwrap_or(1),
+                    microstep: cfg.microstep.unwrap_or(f64::NAN),
+                    checksum: cfg.checksum.unwrap_or(true),
+                    timeout: std::time::Duration::from_millis(300),
+                    retries: 2,
+                };
+                Box::new(crate::drivers::zaber::ZaberAxis::open(settings, info).await?)
+            }
+            AxisDriver::Manual => Box::new(crate::drivers::manual::ManualAxis::new(
+                info,
+                Arc::new(Mutex::new((
+                    Box::new(std::io::BufReader::new(std::io::stdin())),
+                    Box::new(std::io::stderr()),
+                ))),
+            )),
         };
         rig.opened.push(OpenedDevice {
             role: role.to_string(),
@@ -164,6 +184,22 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                     identity: format!("simulated {} (seed {})", cfg.model.name(), req.seed),
                 };
                 Box::new(SimForceSensor::new(info, p, req.clock.clone()))
+            }
+            ForceDriver::NetFt => {
+                let address = cfg.address.clone().unwrap_or_default();
+                let rdt = crate::drivers::netft::resolve(&address, 49152)?;
+                let mut calibration = rdt;
+                calibration.set_port(cfg.calibration_port.unwrap_or(49151));
+                let settings = crate::drivers::netft::NetFtSettings {
+                    rdt,
+                    calibration,
+                    timeout: std::time::Duration::from_millis(500),
+                    retries: 9,
+                    range: cfg.model.range(),
+                };
+                Box::new(
+                    crate::drivers::netft::NetFtSensor::open(settings, req.clock.clone()).await?,
+                )
             }
         };
         rig.opened.push(OpenedDevice {
@@ -192,6 +228,16 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                     ),
                 };
                 Box::new(SimCamera::new(info, p, req.clock.clone()))
+            }
+            CameraDriver::ImageFolder => {
+                let path = std::path::PathBuf::from(cfg.path.clone().unwrap_or_default());
+                let mut cam = crate::drivers::image_folder::ImageFolderCamera::open(
+                    &path,
+                    cfg.fps.hz(),
+                    req.clock.clone(),
+                )?;
+                cam.repeat = cfg.repeat.unwrap_or(false);
+                Box::new(cam)
             }
         };
         rig.opened.push(OpenedDevice {

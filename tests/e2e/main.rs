@@ -12,3 +12,4 @@ mod signals;
 mod support;
 mod track;
 mod validate;
+mod wire;

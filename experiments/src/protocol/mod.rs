@@ -37,6 +37,23 @@ pub struct Loaded {
     pub warnings: Vec<Diagnostic>,
 }
 
+/// Reads and checks a rig file on its own (for `gelrig probe` and `gelrig sim serve`).
+pub fn load_rig(path: &Path) -> Result<(RigConfig, String), Vec<Diagnostic>> {
+    let text = read(path, "the rig file")?;
+    let rig = RigConfig::from_yaml_str(&text)
+        .map_err(|e| vec![Diagnostic::from_yaml_error(path, &text, &e)])?;
+    let diags: Vec<Diagnostic> = rig
+        .check()
+        .into_iter()
+        .map(|i| Diagnostic::at_path(path, &text, &i.path, Severity::Error, i.message, i.fix))
+        .collect();
+    if diags.is_empty() {
+        Ok((rig, text))
+    } else {
+        Err(diags)
+    }
+}
+
 /// Parses protocol text; the error is located in `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Protocol, Box<Diagnostic>> {
     serde_yaml::from_str::<Protocol>(text)

@@ -37,6 +37,10 @@ enum Command {
     Track(cmd::track::Cmd),
     /// Analyse a run: relaxation, linearity, hysteresis, slip, force from field; report.html.
     Report(cmd::report::Cmd),
+    /// Check that every device of a rig file answers (identity, calibration, position).
+    Probe(cmd::probe::Cmd),
+    /// Simulated devices on real transports: `gelrig sim serve --rig R.yaml`.
+    Sim(cmd::sim::Cmd),
 }
 
 fn main() -> ExitCode {
@@ -49,6 +53,8 @@ fn main() -> ExitCode {
         Command::Schema(c) => c.run(),
         Command::Track(c) => c.run(),
         Command::Report(c) => c.run(),
+        Command::Probe(c) => c.run(),
+        Command::Sim(c) => c.run(),
     };
     match result {
         Ok(code) => code,

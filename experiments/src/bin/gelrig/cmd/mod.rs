@@ -1,10 +1,12 @@
 //! One module per subcommand.
 
 pub(crate) mod plan;
+pub(crate) mod probe;
 pub(crate) mod report;
 pub(crate) mod run;
 pub(crate) mod runs;
 pub(crate) mod schema;
+pub(crate) mod sim;
 pub(crate) mod track;
 pub(crate) mod validate;
 

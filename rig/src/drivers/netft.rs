@@ -1,0 +1,307 @@
+//! ATI Net F/T (Nano17 and others) over RDT/UDP, with the calibration read from the box.
+//!
+//! On open the driver reads counts-per-force and counts-per-torque and their units from
+//! the box (READCALINFO over TCP) — never a hard-coded 1e6 — then starts real-time
+//! streaming. `read` drains every datagram that arrived and returns the newest record.
+//! Loss and reordering are counted as netft_utils does: `seqdiff = (i32)(rdt − last)`;
+//! below 1 is out of order (dropped), `seqdiff − 1` records were lost. The box's
+//! `ft_sequence` is unwrapped to 64 bits (it is the sensor's own clock). Status bits 30/31
+//! (out of range, error) surface as [`STATUS_SATURATED`] on the sample.
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use async_trait::async_trait;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpStream, UdpSocket};
+
+use super::netft_rdt::{
+    CMD_BIAS, CMD_START, CMD_STOP, CalInfo, READCALINFO, Record, STATUS_ERROR, STATUS_OUT_OF_RANGE,
+    request,
+};
+use crate::device::{ForceInfo, ForceRange, ForceSample, ForceSensor, STATUS_SATURATED, Wrench};
+use crate::{Clock, RigError};
+
+/// Where the box is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NetFtSettings {
+    /// RDT address (port 49152 on a real box).
+    pub rdt: SocketAddr,
+    /// Calibration address (TCP port 49151 on a real box).
+    pub calibration: SocketAddr,
+    /// How long to wait for the first record or a reply.
+    pub timeout: Duration,
+    /// Start requests sent before giving up (netft_utils retries 10×).
+    pub retries: u32,
+    /// Sensor ranges (Nano17: 70 N axial, 50 N tangential, 500 N·mm).
+    pub range: ForceRange,
+}
+
+/// Stream health counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StreamStats {
+    /// Records received and used.
+    pub received: u64,
+    /// Records missing from the sequence.
+    pub lost: u64,
+    /// Records that arrived after a newer one (dropped).
+    pub out_of_order: u64,
+}
+
+/// The driver.
+pub struct NetFtSensor {
+    info: ForceInfo,
+    settings: NetFtSettings,
+    socket: UdpSocket,
+    n_per_count: f64,
+    nmm_per_count: f64,
+    last_rdt: Option<u32>,
+    ft_epoch: u64,
+    last_ft: Option<u32>,
+    latest: Option<ForceSample>,
+    clock: Clock,
+    /// Loss and reordering so far.
+    pub stats: StreamStats,
+}
+
+/// `host` or `host:port` (default `port`) to a socket address.
+pub fn resolve(address: &str, port: u16) -> Result<SocketAddr, RigError> {
+    use std::net::ToSocketAddrs;
+    let with_port = if address.contains(':') {
+        address.to_string()
+    } else {
+        format!("{address}:{port}")
+    };
+    with_port
+        .to_socket_addrs()
+        .ok()
+        .and_then(|mut a| a.next())
+        .ok_or_else(|| RigError::Unsupported {
+            device: format!("Net F/T at {address}"),
+            detail:
+                "the address does not resolve; fix: write `address: 192.168.1.1` or `host:port`"
+                    .into(),
+        })
+}
+
+fn name(s: &NetFtSettings) -> String {
+    format!("Net F/T at {}", s.rdt)
+}
+
+impl NetFtSensor {
+    /// Reads the calibration, binds a UDP socket and starts streaming.
+    pub async fn open(settings: NetFtSettings, clock: Clock) -> Result<Self, RigError> {
+        let dev = name(&settings);
+        let io = |source: std::io::Error| RigError::Io {
+            device: dev.clone(),
+            source,
+        };
+        let timeout = |what: &str| RigError::Timeout {
+            device: format!("{dev} ({what})"),
+            timeout_ms: settings.timeout.as_millis() as u64,
+        };
+        let cal = tokio::time::timeout(settings.timeout, async {
+            let mut tcp = TcpStream::connect(settings.calibration).await?;
+            tcp.write_all(&READCALINFO).await?;
+            let mut b = [0u8; 24];
+            tcp.read_exact(&mut b).await?;
+            Ok::<_, std::io::Error>(b)
+        })
+        .await
+        .map_err(|_| timeout("calibration"))?
+        .map_err(io)?;
+        let cal = CalInfo::parse(&cal).map_err(|detail| RigError::Garbled {
+            device: dev.clone(),
+            detail,
+        })?;
+        let (n_per_count, nmm_per_count) = cal.scales().map_err(|detail| RigError::Garbled {
+            device: dev.clone(),
+            detail,
+        })?;
+        let socket = UdpSocket::bind(if settings.rdt.is_ipv4() {
+            "0.0.0.0:0"
+        } else {
+            "[::]:0"
+        })
+        .await
+        .map_err(io)?;
+        socket.connect(settings.rdt).await.map_err(io)?;
+        let mut s = Self {
+            info: ForceInfo {
+                model: "Net F/T".into(),
+                range: settings.range,
+                max_rate_hz: 7000.0,
+                identity: format!(
+                    "{dev}, {} counts/force unit {}, {} counts/torque unit {}",
+                    cal.counts_per_force, cal.force_unit, cal.counts_per_torque, cal.torque_unit
+                ),
+            },
+            settings,
+            socket,
+            n_per_count,
+            nmm_per_count,
+            last_rdt: None,
+            ft_epoch: 0,
+            last_ft: None,
+            latest: None,
+            clock,
+            stats: StreamStats::default(),
+        };
+        s.start().await?;
+        Ok(s)
+    }
+
+    /// Sends the start request until a record arrives (bounded).
+    async fn start(&mut self) -> Result<(), RigError> {
+        let dev = name(&self.settings);
+        for _ in 0..=self.settings.retries {
+            self.socket
+                .send(&request(CMD_START, 0))
+                .await
+                .map_err(|source| RigError::Io {
+                    device: dev.clone(),
+                    source,
+                })?;
+            let per_try = self.settings.timeout / (self.settings.retries + 1).max(1);
+            if tokio::time::timeout(per_try, self.receive(true))
+                .await
+                .is_ok_and(|r| r.is_ok())
+                && self.latest.is_some()
+            {
+                return Ok(());
+            }
+        }
+        Err(RigError::Timeout {
+            device: format!("{dev} (no records after the start request)"),
+            timeout_ms: self.settings.timeout.as_millis() as u64,
+        })
+    }
+
+    /// Zeroes the box's reading at the current load (software bias).
+    pub async fn bias(&mut self) -> Result<(), RigError> {
+        let dev = name(&self.settings);
+        self.socket
+            .send(&request(CMD_BIAS, 0))
+            .await
+            .map(|_| ())
+            .map_err(|source| RigError::Io {
+                device: dev,
+                source,
+            })
+    }
+
+    /// Stops the stream.
+    pub async fn stop(&mut self) -> Result<(), RigError> {
+        let dev = name(&self.settings);
+        self.socket
+            .send(&request(CMD_STOP, 0))
+            .await
+            .map(|_| ())
+            .map_err(|source| RigError::Io {
+                device: dev,
+                source,
+            })
+    }
+
+    /// Takes in datagrams: waits for one if `wait`, then drains what is queued.
+    async fn receive(&mut self, wait: bool) -> Result<(), RigError> {
+        let dev = name(&self.settings);
+        let mut buf = [0u8; 36 * 40];
+        let mut first = wait;
+        loop {
+            let n = if first {
+                first = false;
+                self.socket.recv(&mut buf).await
+            } else {
+                match self.socket.try_recv(&mut buf) {
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return Ok(()),
+                    r => r,
+                }
+            };
+            let n = match n {
+                Ok(n) => n,
+                // A refused send (nothing listening) reads back as an error: report it.
+                Err(source) => {
+                    return Err(RigError::Io {
+                        device: dev.clone(),
+                        source,
+                    });
+                }
+            };
+            let t_ns = self.clock.now_ns();
+            // Datagrams that are not whole records are ignored (spec: accept multiples of 36).
+            let Some(records) = Record::parse_all(&buf[..n]) else {
+                continue;
+            };
+            for r in records {
+                self.take(r, t_ns);
+            }
+        }
+    }
+
+    fn take(&mut self, r: Record, t_ns: u64) {
+        if let Some(last) = self.last_rdt {
+            let d = r.rdt_seq.wrapping_sub(last) as i32;
+            if d < 1 {
+                self.stats.out_of_order += 1;
+                return;
+            }
+            self.stats.lost += (d - 1) as u64;
+        }
+        self.last_rdt = Some(r.rdt_seq);
+        if let Some(last) = self.last_ft
+            && r.ft_seq < last
+        {
+            self.ft_epoch += 1 << 32;
+        }
+        self.last_ft = Some(r.ft_seq);
+        self.stats.received += 1;
+        let c = r.counts.map(f64::from);
+        let saturated = r.status & (STATUS_OUT_OF_RANGE | STATUS_ERROR) != 0;
+        self.latest = Some(ForceSample {
+            t_ns,
+            ft_seq: self.ft_epoch + r.ft_seq as u64,
+            wrench: Wrench {
+                fx_n: c[0] * self.n_per_count,
+                fy_n: c[1] * self.n_per_count,
+                fz_n: c[2] * self.n_per_count,
+                tx_nmm: c[3] * self.nmm_per_count,
+                ty_nmm: c[4] * self.nmm_per_count,
+                tz_nmm: c[5] * self.nmm_per_count,
+            },
+            status: if saturated {
+                r.status | STATUS_SATURATED
+            } else {
+                r.status
+            },
+        });
+    }
+}
+
+#[async_trait]
+impl ForceSensor for NetFtSensor {
+    fn info(&self) -> &ForceInfo {
+        &self.info
+    }
+
+    async fn read(&mut self) -> Result<ForceSample, RigError> {
+        let before = self.stats.received;
+        self.receive(false).await?;
+        if self.stats.received == before {
+            // Nothing new queued: wait for the next record, boundedly.
+            match tokio::time::timeout(self.settings.timeout, self.receive(true)).await {
+                Ok(r) => r?,
+                Err(_) => {
+                    return Err(RigError::Timeout {
+                        device: format!("{} (stream stopped)", name(&self.settings)),
+                        timeout_ms: self.settings.timeout.as_millis() as u64,
+                    });
+                }
+            }
+        }
+        self.latest.ok_or_else(|| RigError::Timeout {
+            device: name(&self.settings),
+            timeout_ms: self.settings.timeout.as_millis() as u64,
+        })
+    }
+}

@@ -1,0 +1,265 @@
+//! An ATI Net F/T box on loopback: RDT over UDP and READCALINFO over TCP (spec
+//! `devices.md` §5, "Net F/T"). Counts per unit are deliberately not 1e6, so a driver that
+//! hard-codes the scaling fails. The load comes from a shared [`Wrench`] the caller sets
+//! (a test, or `gelrig sim serve` from the simulated plant).
+//!
+//! Streaming follows the box: `0x0002 N` streams N records (0 = forever) to the latest
+//! requester at `rate_hz`; `0x0000` stops; `0x0042` biases to the current load. Counters:
+//! `rdt_seq` from 1 per packet, `ft_seq` at 7000 Hz; both wrap at 2³² and can be started
+//! near the wrap. Saturation sets status bits 31|30. Faults: loss, reordering,
+//! duplication, ignoring requests, and a stopped stream.
+
+use std::net::{SocketAddr, TcpListener, UdpSocket};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crate::device::{ForceRange, Wrench};
+use crate::drivers::netft_rdt::{
+    CMD_BIAS, CMD_START, CMD_START_BUFFERED, CMD_STOP, CalInfo, Record, STATUS_ERROR,
+    STATUS_OUT_OF_RANGE, parse_request,
+};
+use crate::lock;
+
+/// Faults to inject.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Faults {
+    /// Drop every Nth packet (0: none).
+    pub drop_every: u32,
+    /// Swap every Nth packet with the next (0: none).
+    pub reorder_every: u32,
+    /// Send every Nth packet twice (0: none).
+    pub duplicate_every: u32,
+    /// Ignore every request (the box is unreachable).
+    pub ignore_requests: bool,
+    /// Stop sending records (the box hung).
+    pub silent: bool,
+}
+
+/// Box parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwinParams {
+    /// Records per second.
+    pub rate_hz: f64,
+    /// Calibration reported over TCP.
+    pub cal: CalInfo,
+    /// Sensor range (saturation).
+    pub range: ForceRange,
+    /// First `rdt_seq` and `ft_seq` (to force a wrap).
+    pub first_seq: (u32, u32),
+}
+
+/// A running box.
+pub struct NetFtTwin {
+    rdt: SocketAddr,
+    calibration: SocketAddr,
+    /// The load the box reads.
+    pub load: Arc<Mutex<Wrench>>,
+    faults: Arc<Mutex<Faults>>,
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+impl NetFtTwin {
+    /// Binds UDP and TCP on 127.0.0.1 (ephemeral ports) and starts serving.
+    pub fn spawn(params: TwinParams) -> std::io::Result<Self> {
+        let udp = UdpSocket::bind("127.0.0.1:0")?;
+        udp.set_read_timeout(Some(Duration::from_millis(1)))?;
+        let tcp = TcpListener::bind("127.0.0.1:0")?;
+        tcp.set_nonblocking(true)?;
+        let (rdt, calibration) = (udp.local_addr()?, tcp.local_addr()?);
+        let load = Arc::new(Mutex::new(Wrench::default()));
+        let faults = Arc::new(Mutex::new(Faults::default()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (l, f, s, p) = (load.clone(), faults.clone(), stop.clone(), params.clone());
+        let stream = std::thread::spawn(move || serve_rdt(&udp, &p, &l, &f, &s));
+        let (s2, cal) = (stop.clone(), params.cal);
+        let calib = std::thread::spawn(move || serve_cal(&tcp, cal, &s2));
+        Ok(Self {
+            rdt,
+            calibration,
+            load,
+            faults,
+            stop,
+            threads: vec![stream, calib],
+        })
+    }
+
+    /// The RDT address.
+    pub fn rdt_addr(&self) -> SocketAddr {
+        self.rdt
+    }
+
+    /// The calibration (TCP) address.
+    pub fn calibration_addr(&self) -> SocketAddr {
+        self.calibration
+    }
+
+    /// Fault switches.
+    pub fn faults(&self) -> &Arc<Mutex<Faults>> {
+        &self.faults
+    }
+}
+
+impl Drop for NetFtTwin {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+fn serve_cal(tcp: &TcpListener, cal: CalInfo, stop: &AtomicBool) {
+    use std::io::{Read, Write};
+    while !stop.load(Ordering::Relaxed) {
+        match tcp.accept() {
+            Ok((mut c, _)) => {
+                let _ = c.set_read_timeout(Some(Duration::from_millis(200)));
+                let mut req = [0u8; 20];
+                if c.read_exact(&mut req).is_ok() && req[0] == 0x01 {
+                    let _ = c.write_all(&cal.to_bytes());
+                }
+            }
+            Err(_) => std::thread::sleep(Duration::from_millis(2)),
+        }
+    }
+}
+
+fn serve_rdt(
+    udp: &UdpSocket,
+    p: &TwinParams,
+    load: &Mutex<Wrench>,
+    faults: &Mutex<Faults>,
+    stop: &AtomicBool,
+) {
+    let (n_per_count, nmm_per_count) = p.cal.scales().unwrap_or((1e-6, 1e-6));
+    let mut client: Option<SocketAddr> = None;
+    let mut remaining: Option<u32> = None;
+    let mut bias = Wrench::default();
+    let (mut rdt_seq, mut ft_seq) = p.first_seq;
+    let period = Duration::from_secs_f64(1.0 / p.rate_hz.max(1.0));
+    let ft_step = (7000.0 / p.rate_hz.max(1.0)).round().max(1.0) as u32;
+    let mut next = Instant::now();
+    let mut held: Option<Vec<u8>> = None;
+    let mut buf = [0u8; 64];
+    while !stop.load(Ordering::Relaxed) {
+        if let Ok((n, from)) = udp.recv_from(&mut buf) {
+            let f = lock(faults).clone();
+            if let (false, Some((cmd, count))) = (f.ignore_requests, parse_request(&buf[..n])) {
+                match cmd {
+                    CMD_START | CMD_START_BUFFERED => {
+                        client = Some(from);
+                        remaining = (count > 0).then_some(count);
+                    }
+                    CMD_STOP => client = None,
+                    CMD_BIAS => bias = *lock(load),
+                    _ => {}
+                }
+            }
+        }
+        // Send every record that is due (the socket timeout is coarse under load); after a
+        // stall of more than 50 records the box skips ahead, as a real one drops them.
+        let now = Instant::now();
+        if now < next {
+            continue;
+        }
+        if now > next + 50 * period {
+            next = now;
+        }
+        while next <= now && client.is_some() {
+            next += period;
+            send_one(
+                udp,
+                p,
+                load,
+                faults,
+                &mut client,
+                &mut remaining,
+                &bias,
+                &mut rdt_seq,
+                &mut ft_seq,
+                ft_step,
+                &mut held,
+                (n_per_count, nmm_per_count),
+            );
+        }
+        if client.is_none() {
+            next = now;
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn send_one(
+    udp: &UdpSocket,
+    p: &TwinParams,
+    load: &Mutex<Wrench>,
+    faults: &Mutex<Faults>,
+    client: &mut Option<SocketAddr>,
+    remaining: &mut Option<u32>,
+    bias: &Wrench,
+    rdt_seq: &mut u32,
+    ft_seq: &mut u32,
+    ft_step: u32,
+    held: &mut Option<Vec<u8>>,
+    (n_per_count, nmm_per_count): (f64, f64),
+) {
+    {
+        let Some(to) = *client else { return };
+        let f = lock(faults).clone();
+        if f.silent {
+            return;
+        }
+        let w = *lock(load);
+        let out = |v: f64, range: f64| v.abs() > range;
+        let r = &p.range;
+        let saturated = out(w.fz_n, r.fz_n)
+            || out(w.fx_n, r.fxy_n)
+            || out(w.fy_n, r.fxy_n)
+            || out(w.tz_nmm, r.torque_nmm);
+        let net = w.minus(bias).as_array();
+        let counts: [i32; 6] = std::array::from_fn(|k| {
+            let per = if k < 3 { n_per_count } else { nmm_per_count };
+            (net[k] / per)
+                .round()
+                .clamp(i32::MIN as f64, i32::MAX as f64) as i32
+        });
+        let rec = Record {
+            rdt_seq: *rdt_seq,
+            ft_seq: *ft_seq,
+            status: if saturated {
+                STATUS_ERROR | STATUS_OUT_OF_RANGE
+            } else {
+                0
+            },
+            counts,
+        };
+        let k = *rdt_seq;
+        *rdt_seq = rdt_seq.wrapping_add(1);
+        *ft_seq = ft_seq.wrapping_add(ft_step);
+        if let Some(left) = remaining.as_mut() {
+            *left -= 1;
+            if *left == 0 {
+                *client = None;
+            }
+        }
+        let every = |n: u32| n > 0 && k.is_multiple_of(n);
+        if every(f.drop_every) {
+            return;
+        }
+        let bytes = rec.to_bytes().to_vec();
+        if every(f.reorder_every) && held.is_none() {
+            *held = Some(bytes);
+            return;
+        }
+        let _ = udp.send_to(&bytes, to);
+        if let Some(h) = held.take() {
+            let _ = udp.send_to(&h, to);
+        }
+        if every(f.duplicate_every) {
+            let _ = udp.send_to(&bytes, to);
+        }
+    }
+}

@@ -1,0 +1,314 @@
+//! A Zaber ASCII device on a pseudo-terminal: the production driver opens `/dev/pts/N`
+//! by path and cannot tell it from a stage (spec `devices.md` §5, "Zaber").
+//!
+//! It parses `/d a [id] cmd[:CC]` with CR, LF or CRLF endings, verifies the LRC, echoes the
+//! message id, and replies `@0d a [id] OK|RJ IDLE|BUSY ww data`. Motion runs at the
+//! commanded speed in real time (`get pos` interpolates, BUSY until done); the travel
+//! limits reject with BADDATA; unknown commands BADCOMMAND, other axes BADAXIS; `WR`
+//! until homed (moves rejected); `NI` after a move interrupted by another move or `stop`.
+//! Faults are injected through [`Faults`].
+
+use std::io::{Read, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use serialport::{SerialPort, TTYPort};
+
+use crate::drivers::zaber_ascii::{parse_command, with_checksum};
+use crate::lock;
+
+/// Faults to inject; change them at any time through [`ZaberTwin::faults`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Faults {
+    /// Drop every reply.
+    pub no_reply: bool,
+    /// Corrupt the next N replies (a flipped character, so the checksum or the grammar fails).
+    pub garble_next: u32,
+    /// Delay every reply by this long.
+    pub delay: Duration,
+    /// Close the port (the device was unplugged).
+    pub disconnect: bool,
+}
+
+/// Device parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwinParams {
+    /// Device address.
+    pub device: u8,
+    /// Travel in microsteps.
+    pub limits: (i64, i64),
+    /// Whether the device requires checksums on commands.
+    pub require_checksum: bool,
+}
+
+#[derive(Debug, Clone)]
+struct Motion {
+    from: f64,
+    to: f64,
+    start: Instant,
+    speed: f64,
+}
+
+impl Motion {
+    fn at(&self, now: Instant) -> (f64, bool) {
+        let dt = now.saturating_duration_since(self.start).as_secs_f64();
+        let d = self.to - self.from;
+        let travelled = self.speed * dt;
+        if travelled >= d.abs() {
+            (self.to, false)
+        } else {
+            (self.from + d.signum() * travelled, true)
+        }
+    }
+}
+
+struct State {
+    motion: Motion,
+    homed: bool,
+    interrupted: bool,
+}
+
+/// A running twin.
+pub struct ZaberTwin {
+    path: String,
+    state: Arc<Mutex<State>>,
+    faults: Arc<Mutex<Faults>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+    transcript: Arc<Mutex<Vec<String>>>,
+}
+
+static PAIR: Mutex<()> = Mutex::new(());
+
+impl ZaberTwin {
+    /// Starts a twin on a new pseudo-terminal.
+    pub fn spawn(params: TwinParams) -> std::io::Result<Self> {
+        let (mut master, slave) = {
+            // `TTYPort::pair` is not thread-safe (serialport's own tests serialise it).
+            let _g = lock(&PAIR);
+            TTYPort::pair().map_err(std::io::Error::other)?
+        };
+        let path = slave
+            .name()
+            .ok_or_else(|| std::io::Error::other("pty without a name"))?;
+        drop(slave);
+        master
+            .set_timeout(Duration::from_millis(10))
+            .map_err(std::io::Error::other)?;
+        let faults = Arc::new(Mutex::new(Faults::default()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let transcript = Arc::new(Mutex::new(Vec::new()));
+        let state = Arc::new(Mutex::new(State {
+            motion: Motion {
+                from: 0.0,
+                to: 0.0,
+                start: Instant::now(),
+                speed: 1.0,
+            },
+            homed: false,
+            interrupted: false,
+        }));
+        let (f, s, t, st) = (
+            faults.clone(),
+            stop.clone(),
+            transcript.clone(),
+            state.clone(),
+        );
+        let thread = std::thread::spawn(move || serve(&mut master, &params, &f, &s, &t, &st));
+        Ok(Self {
+            path,
+            state,
+            faults,
+            stop,
+            thread: Some(thread),
+            transcript,
+        })
+    }
+
+    /// The pseudo-terminal path the driver opens.
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// Where the stage is now, in microsteps (for coupling it to a simulated load).
+    pub fn position_microsteps(&self) -> f64 {
+        lock(&self.state).motion.at(Instant::now()).0
+    }
+
+    /// The fault switches.
+    pub fn faults(&self) -> &Arc<Mutex<Faults>> {
+        &self.faults
+    }
+
+    /// Every line received and sent (`> ` and `< `), for test diagnostics.
+    pub fn transcript(&self) -> Vec<String> {
+        lock(&self.transcript).clone()
+    }
+}
+
+impl Drop for ZaberTwin {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn serve(
+    master: &mut TTYPort,
+    p: &TwinParams,
+    faults: &Mutex<Faults>,
+    stop: &AtomicBool,
+    log: &Mutex<Vec<String>>,
+    state: &Mutex<State>,
+) {
+    let mut pending = Vec::new();
+    let mut buf = [0u8; 256];
+    while !stop.load(Ordering::Relaxed) {
+        if lock(faults).disconnect {
+            return;
+        }
+        let n = match master.read(&mut buf) {
+            Ok(n) => n,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
+                ) =>
+            {
+                continue;
+            }
+            // EIO while no driver holds the slave side open (before the first open, between
+            // probes): wait for the next one.
+            Err(_) => {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            }
+        };
+        pending.extend_from_slice(&buf[..n]);
+        while let Some(k) = pending.iter().position(|b| *b == b'\n' || *b == b'\r') {
+            let line: Vec<u8> = pending.drain(..=k).collect();
+            let line = String::from_utf8_lossy(&line).trim().to_string();
+            if line.is_empty() {
+                continue;
+            }
+            lock(log).push(format!("> {line}"));
+            let Some(reply) = respond(&line, p, &mut lock(state)) else {
+                continue;
+            };
+            let f = lock(faults).clone();
+            if f.no_reply {
+                continue;
+            }
+            let mut reply = reply;
+            if f.garble_next > 0 {
+                lock(faults).garble_next -= 1;
+                reply = reply.replacen('@', "@X", 1).replace(" OK ", " 0K ");
+            }
+            if !f.delay.is_zero() {
+                std::thread::sleep(f.delay);
+            }
+            lock(log).push(format!("< {reply}"));
+            // A driver that went away mid-reply: drop the reply, keep serving.
+            let _ = master.write_all(format!("{reply}\r\n").as_bytes());
+        }
+    }
+}
+
+/// The reply to one command line, or `None` for a message to another device.
+fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
+    let now = Instant::now();
+    let (pos, busy) = st.motion.at(now);
+    let reply = |axis: u8, id: Option<u8>, ok: bool, busy: bool, warn: &str, data: &str| {
+        let id = id.map(|i| format!(" {i}")).unwrap_or_default();
+        let body = format!(
+            "{:02} {axis}{id} {} {} {warn} {data}",
+            p.device,
+            if ok { "OK" } else { "RJ" },
+            if busy { "BUSY" } else { "IDLE" }
+        );
+        format!("@{}", with_checksum(&body, true))
+    };
+    let cmd = match parse_command(line) {
+        Ok(c) => c,
+        Err(reason) => return Some(reply(0, None, false, busy, "--", reason)),
+    };
+    if cmd.device != 0 && cmd.device != p.device {
+        return None;
+    }
+    if p.require_checksum && !line.contains(':') {
+        return Some(reply(cmd.axis, cmd.id, false, busy, "--", "BADDATA"));
+    }
+    let warn = if !st.homed {
+        "WR"
+    } else if st.interrupted {
+        "NI"
+    } else {
+        "--"
+    };
+    if cmd.axis > 1 {
+        return Some(reply(cmd.axis, cmd.id, false, busy, warn, "BADAXIS"));
+    }
+    let words: Vec<&str> = cmd.words.iter().map(String::as_str).collect();
+    let ok =
+        |data: &str, busy: bool, warn: &str| Some(reply(cmd.axis, cmd.id, true, busy, warn, data));
+    let rj = |why: &str| Some(reply(cmd.axis, cmd.id, false, busy, warn, why));
+    match words.as_slice() {
+        [] => ok("0", busy, warn),
+        ["get", "pos"] => ok(&format!("{}", pos.round() as i64), busy, warn),
+        ["get", "deviceid"] => ok("50081", busy, warn),
+        ["get", "version"] => ok("7.38", busy, warn),
+        ["home"] => {
+            st.interrupted = busy;
+            st.motion = Motion {
+                from: pos,
+                to: 0.0,
+                start: now,
+                speed: 200_000.0,
+            };
+            st.homed = true;
+            ok("0", true, "--")
+        }
+        ["stop"] => {
+            st.interrupted = busy;
+            st.motion = Motion {
+                from: pos,
+                to: pos,
+                start: now,
+                speed: 1.0,
+            };
+            ok("0", false, if busy { "NI" } else { warn })
+        }
+        ["move", "abs", target, rest @ ..] => {
+            if !st.homed {
+                return rj("BADDATA");
+            }
+            let (Ok(t), speed) = (
+                target.parse::<i64>(),
+                rest.first().map(|s| s.parse::<f64>()),
+            ) else {
+                return rj("BADDATA");
+            };
+            let speed = match speed {
+                None => 100_000.0,
+                Some(Ok(s)) if s > 0.0 => s / 1.6384,
+                Some(_) => return rj("BADDATA"),
+            };
+            if t < p.limits.0 || t > p.limits.1 {
+                return rj("BADDATA");
+            }
+            st.interrupted = busy;
+            st.motion = Motion {
+                from: pos,
+                to: t as f64,
+                start: now,
+                speed,
+            };
+            ok("0", true, if busy { "NI" } else { "--" })
+        }
+        _ => rj("BADCOMMAND"),
+    }
+}

@@ -1,0 +1,172 @@
+//! The production Net F/T driver against its twin over loopback UDP and TCP: scaling read
+//! from the box, bias, saturation, sequence wrap, and injected loss, reordering,
+//! duplication, an unreachable box and a stopped stream.
+
+use std::time::{Duration, Instant};
+
+use rig::device::{ForceRange, ForceSensor, STATUS_SATURATED, Wrench};
+use rig::drivers::netft::{NetFtSensor, NetFtSettings};
+use rig::drivers::netft_rdt::CalInfo;
+use rig::twins::netft::{NetFtTwin, TwinParams};
+use rig::{Clock, ClockMode, RigError, lock};
+
+const NANO17: ForceRange = ForceRange {
+    fz_n: 70.0,
+    fxy_n: 50.0,
+    torque_nmm: 500.0,
+    force_resolution_n: 1.0 / 80.0,
+    torque_resolution_nmm: 1.0 / 16.0,
+};
+
+fn twin(first_seq: (u32, u32)) -> NetFtTwin {
+    NetFtTwin::spawn(TwinParams {
+        rate_hz: 500.0,
+        // Counts per N and per N·m that are not 1e6: hard-coded scaling would be wrong.
+        cal: CalInfo {
+            force_unit: 2,
+            torque_unit: 3,
+            counts_per_force: 1_500_000,
+            counts_per_torque: 2_000_000,
+        },
+        range: NANO17,
+        first_seq,
+    })
+    .expect("loopback sockets")
+}
+
+fn settings(t: &NetFtTwin) -> NetFtSettings {
+    NetFtSettings {
+        rdt: t.rdt_addr(),
+        calibration: t.calibration_addr(),
+        timeout: Duration::from_millis(300),
+        retries: 3,
+        range: NANO17,
+    }
+}
+
+fn clock() -> Clock {
+    Clock::new(ClockMode::Scaled { scale: 1.0 })
+}
+
+/// Reads until `pred` holds or a second passes.
+async fn read_until(
+    s: &mut NetFtSensor,
+    pred: impl Fn(&rig::ForceSample) -> bool,
+) -> rig::ForceSample {
+    let t0 = Instant::now();
+    loop {
+        let x = s.read().await.expect("sample");
+        if pred(&x) {
+            return x;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(2),
+            "never reached: {x:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
+#[tokio::test]
+async fn scaled_samples_bias_and_saturation() {
+    let t = twin((1, 0));
+    *lock(&t.load) = Wrench {
+        fx_n: 0.5,
+        fy_n: 0.0,
+        fz_n: 2.25,
+        tx_nmm: 0.0,
+        ty_nmm: 0.0,
+        tz_nmm: 12.0,
+    };
+    let mut s = NetFtSensor::open(settings(&t), clock())
+        .await
+        .expect("opens");
+    assert!(
+        s.info().identity.contains("1500000"),
+        "{}",
+        s.info().identity
+    );
+    let x = read_until(&mut s, |x| x.wrench.fz_n > 2.0).await;
+    assert!(
+        (x.wrench.fz_n - 2.25).abs() < 1e-6 && (x.wrench.fx_n - 0.5).abs() < 1e-6,
+        "{x:?}"
+    );
+    // N·m on the wire, N·mm in gelrig.
+    assert!((x.wrench.tz_nmm - 12.0).abs() < 1e-3, "{x:?}");
+    assert_eq!(x.status & STATUS_SATURATED, 0);
+    s.bias().await.expect("bias");
+    read_until(&mut s, |x| x.wrench.fz_n.abs() < 1e-6).await;
+    *lock(&t.load) = Wrench {
+        fz_n: 80.0,
+        ..Default::default()
+    };
+    let x = read_until(&mut s, |x| x.status & STATUS_SATURATED != 0).await;
+    assert!(x.wrench.fz_n > 70.0);
+    assert_eq!(s.stats.lost + s.stats.out_of_order, 0, "{:?}", s.stats);
+}
+
+#[tokio::test]
+async fn loss_reordering_duplicates_and_the_counter_wrap_are_counted() {
+    // Start 100 records before both counters wrap.
+    let t = twin((u32::MAX - 100, u32::MAX - 1400));
+    let mut s = NetFtSensor::open(settings(&t), clock())
+        .await
+        .expect("opens");
+    {
+        let mut f = lock(t.faults());
+        f.drop_every = 10;
+        f.reorder_every = 7;
+        f.duplicate_every = 13;
+    }
+    let first = s.read().await.expect("sample").ft_seq;
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_millis(800) {
+        s.read().await.expect("sample");
+    }
+    let last = s.read().await.expect("sample").ft_seq;
+    assert!(
+        last > first && last > u32::MAX as u64,
+        "ft_seq unwrapped past 2^32: {first} → {last}"
+    );
+    let st = s.stats;
+    assert!(st.lost > 0 && st.out_of_order > 0, "{st:?}");
+    // About a tenth of the records dropped (reordered ones count once as lost, once late).
+    let ratio = st.lost as f64 / (st.received + st.lost) as f64;
+    assert!((0.05..0.3).contains(&ratio), "{st:?}");
+}
+
+#[tokio::test]
+async fn an_unreachable_box_or_a_stopped_stream_is_a_timeout_not_a_hang() {
+    let t = twin((1, 0));
+    lock(t.faults()).ignore_requests = true;
+    let t0 = Instant::now();
+    let e = NetFtSensor::open(settings(&t), clock())
+        .await
+        .err()
+        .expect("no stream");
+    assert!(matches!(e, RigError::Timeout { .. }), "{e}");
+    assert!(t0.elapsed() < Duration::from_secs(2));
+    lock(t.faults()).ignore_requests = false;
+
+    let mut s = NetFtSensor::open(settings(&t), clock())
+        .await
+        .expect("opens");
+    s.read().await.expect("sample");
+    lock(t.faults()).silent = true;
+    tokio::time::sleep(Duration::from_millis(50)).await;
+    let _ = s.read().await; // drains what was queued
+    let e = s.read().await.expect_err("stopped");
+    assert!(e.to_string().contains("stream stopped"), "{e}");
+
+    // Nothing listening for calibration at all.
+    let mut bad = settings(&t);
+    bad.calibration = "127.0.0.1:1".parse().expect("addr");
+    let e = NetFtSensor::open(bad, clock())
+        .await
+        .err()
+        .expect("refused");
+    assert!(
+        matches!(e, RigError::Io { .. } | RigError::Timeout { .. }),
+        "{e}"
+    );
+}

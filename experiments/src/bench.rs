@@ -10,6 +10,7 @@ use std::time::Duration;
 
 use rig::config::{AxisDriver, AxisRole, CameraDriver, ForceDriver, RigConfig};
 use rig::twins::netft::{NetFtTwin, TwinParams as NetFtParams};
+use rig::twins::smc100::{Smc100Twin, TwinParams as Smc100Params};
 use rig::twins::zaber::{TwinParams as ZaberParams, ZaberTwin};
 use rig::{Clock, ClockMode, OpenRequest, Wrench, lock, open};
 
@@ -42,6 +43,7 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
     let mut out = Vec::new();
     for (role, cfg) in &rig.axes {
         if matches!(cfg.driver, AxisDriver::Sim | AxisDriver::Manual) {
+            // Nothing answers but the operator or the in-process bench.
             out.push(Probe {
                 role: role.to_string(),
                 detail: format!("{:?} (nothing to probe)", cfg.driver).to_lowercase(),
@@ -163,32 +165,60 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
     out
 }
 
+/// A stage twin and how to read its position.
+enum StageTwin {
+    /// With its microstep size.
+    Zaber(ZaberTwin, f64),
+    Smc100(Smc100Twin),
+}
+
+impl StageTwin {
+    fn position(&self) -> f64 {
+        match self {
+            StageTwin::Zaber(t, step) => t.position_microsteps() * step,
+            StageTwin::Smc100(t) => t.position_mm(),
+        }
+    }
+}
+
 /// Running twins of a rig's devices.
 pub struct Served {
     /// The rig file with every twin's address filled in.
     pub bound: RigConfig,
-    zabers: Vec<(AxisRole, ZaberTwin, f64)>,
+    stages: Vec<(AxisRole, StageTwin)>,
     netft: Option<NetFtTwin>,
 }
 
-/// Starts a twin for every Zaber axis (a pseudo-terminal) and the Net F/T box (loopback
-/// UDP and TCP) of `rig`, and returns the rig with the bound addresses.
+/// Starts a twin for every Zaber and SMC100 axis (each on a pseudo-terminal) and the Net
+/// F/T box (loopback UDP and TCP) of `rig`, and returns the rig with the bound addresses.
 pub fn serve(rig: &RigConfig) -> std::io::Result<Served> {
     let mut bound = rig.clone();
-    let mut zabers = Vec::new();
+    let mut stages = Vec::new();
     for (role, cfg) in bound.axes.iter_mut() {
-        if !matches!(cfg.driver, AxisDriver::Zaber) {
-            continue;
-        }
-        let step = cfg.microstep.unwrap_or(1.0);
         let (lo, hi) = cfg.travel();
-        let twin = ZaberTwin::spawn(ZaberParams {
-            device: cfg.device.unwrap_or(1),
-            limits: ((lo / step).round() as i64, (hi / step).round() as i64),
-            require_checksum: cfg.checksum.unwrap_or(true),
-        })?;
-        cfg.port = Some(twin.path().to_string());
-        zabers.push((*role, twin, step));
+        let twin = match cfg.driver {
+            AxisDriver::Zaber => {
+                let step = cfg.microstep.unwrap_or(1.0);
+                let twin = ZaberTwin::spawn(ZaberParams {
+                    device: cfg.device.unwrap_or(1),
+                    limits: ((lo / step).round() as i64, (hi / step).round() as i64),
+                    require_checksum: cfg.checksum.unwrap_or(true),
+                })?;
+                cfg.port = Some(twin.path().to_string());
+                StageTwin::Zaber(twin, step)
+            }
+            AxisDriver::Smc100 => {
+                let twin = Smc100Twin::spawn(Smc100Params {
+                    address: cfg.device.unwrap_or(1),
+                    limits: (lo, hi),
+                    home_speed: 5.0,
+                })?;
+                cfg.port = Some(twin.path().to_string());
+                StageTwin::Smc100(twin)
+            }
+            _ => continue,
+        };
+        stages.push((*role, twin));
     }
     let mut netft = None;
     if let Some(f) = bound.force.as_mut()
@@ -211,7 +241,7 @@ pub fn serve(rig: &RigConfig) -> std::io::Result<Served> {
     }
     Ok(Served {
         bound,
-        zabers,
+        stages,
         netft,
     })
 }
@@ -224,10 +254,10 @@ impl Served {
         while !stop.load(Ordering::Relaxed) {
             if let Some(box_) = &self.netft {
                 let depth = self
-                    .zabers
+                    .stages
                     .iter()
-                    .find(|(r, _, _)| *r == AxisRole::Normal)
-                    .map(|(_, t, step)| t.position_microsteps() * step - contact_mm)
+                    .find(|(r, _)| *r == AxisRole::Normal)
+                    .map(|(_, t)| t.position() - contact_mm)
                     .unwrap_or(0.0);
                 *lock(&box_.load) = Wrench {
                     fz_n: stiffness_n_per_mm * depth.max(0.0),

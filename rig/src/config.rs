@@ -107,10 +107,10 @@ pub struct AxisConfig {
     /// How often to poll position while moving (default 20 Hz).
     #[serde(default)]
     pub poll_rate: Option<Frequency>,
-    /// Serial device of a `zaber` axis (`/dev/ttyUSB0`; a twin's `/dev/pts/N`).
+    /// Serial device of a `zaber` or `smc100` axis (`/dev/ttyUSB0`; a twin's `/dev/pts/N`).
     #[serde(default)]
     pub port: Option<String>,
-    /// Zaber device address on the daisy chain (default 1).
+    /// Zaber device address on the daisy chain, or SMC100 controller address (default 1).
     #[serde(default)]
     pub device: Option<u8>,
     /// Zaber axis number on the device (default 1).
@@ -152,6 +152,8 @@ pub enum AxisDriver {
     Zaber,
     /// A hand-turned micrometer: gelrig prompts the operator on the terminal.
     Manual,
+    /// A Newport SMC100 / CONEX-CC controller on `port` at address `device` (default 1).
+    Smc100,
 }
 
 /// The force/torque sensor.
@@ -172,6 +174,18 @@ pub struct ForceConfig {
     /// Net F/T calibration (TCP) port, default 49151.
     #[serde(default)]
     pub calibration_port: Option<u16>,
+    /// SocketCAN interface of an `ati_can` sensor (`can0`).
+    #[serde(default)]
+    pub can_interface: Option<String>,
+    /// CAN base id of an `ati_can` sensor (DIP switches).
+    #[serde(default)]
+    pub base_id: Option<u32>,
+    /// Counts per N of an `ati_can` sensor's short data (from the box's configuration).
+    #[serde(default)]
+    pub counts_per_force: Option<f64>,
+    /// Counts per N·mm of an `ati_can` sensor's short data.
+    #[serde(default)]
+    pub counts_per_torque: Option<f64>,
 }
 
 /// Force sensor drivers available in this build.
@@ -182,6 +196,9 @@ pub enum ForceDriver {
     Sim,
     /// An ATI Net F/T box: RDT over UDP at `address`, calibration read from the box.
     NetFt,
+    /// An ATI Net F/T on a CAN bus (short data) on `can_interface` at `base_id`, with the
+    /// box's `counts_per_force` and `counts_per_torque` (needs the `socketcan` feature).
+    AtiCan,
 }
 
 /// Force/torque sensor models with known ranges.
@@ -237,6 +254,8 @@ pub enum CameraDriver {
     Sim,
     /// Replays the PNG frames of `path` (a recorded sequence) at `fps`.
     ImageFolder,
+    /// A V4L2 (USB) camera at `path` (`/dev/video0`); needs the `v4l` feature.
+    V4l2,
 }
 
 /// What applies disturbances to a grasped object.
@@ -408,6 +427,13 @@ impl RigConfig {
         }
         for (role, axis) in &self.axes {
             let at = YamlPath::root().key("axes").key(role.name());
+            if matches!(axis.driver, AxisDriver::Smc100) && axis.port.is_none() {
+                issues.push(ConfigIssue {
+                    path: at.key("driver"),
+                    message: "an smc100 axis needs the serial port it is on".into(),
+                    fix: "add `port: /dev/ttyUSB0`".into(),
+                });
+            }
             if matches!(axis.driver, AxisDriver::Zaber) {
                 if axis.port.is_none() {
                     issues.push(ConfigIssue {
@@ -434,6 +460,19 @@ impl RigConfig {
                 path: YamlPath::root().key("force").key("driver"),
                 message: "a net_ft sensor needs the box's address".into(),
                 fix: "add `address: 192.168.1.1` (or `host:port`)".into(),
+            });
+        }
+        if let Some(f) = &self.force
+            && matches!(f.driver, ForceDriver::AtiCan)
+            && (f.can_interface.is_none()
+                || f.base_id.is_none()
+                || !f.counts_per_force.is_some_and(|c| c > 0.0)
+                || !f.counts_per_torque.is_some_and(|c| c > 0.0))
+        {
+            issues.push(ConfigIssue {
+                path: YamlPath::root().key("force").key("driver"),
+                message: "an ati_can sensor needs its interface, base id and counts per unit".into(),
+                fix: "add `can_interface: can0, base_id: 0x20, counts_per_force: …, counts_per_torque: …` from the box's configuration page".into(),
             });
         }
         if let Some(c) = &self.camera

@@ -31,6 +31,20 @@ pub struct AxisInfo {
 }
 
 impl AxisInfo {
+    /// Refuses a speed outside (0, max_speed].
+    pub fn check_speed(&self, speed: f64) -> Result<(), RigError> {
+        if speed > 0.0 && speed <= self.max_speed {
+            Ok(())
+        } else {
+            Err(RigError::BadSpeed {
+                axis: self.role.clone(),
+                speed,
+                max: self.max_speed,
+                unit: self.unit,
+            })
+        }
+    }
+
     /// Refuses a target outside the travel before anything is sent to the device.
     pub fn check_target(&self, target: f64) -> Result<(), RigError> {
         if (self.travel_min..=self.travel_max).contains(&target) {

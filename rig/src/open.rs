@@ -155,6 +155,18 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                 };
                 Box::new(crate::drivers::zaber::ZaberAxis::open(settings, info).await?)
             }
+            AxisDriver::Smc100 => Box::new(
+                crate::drivers::smc100::Smc100Axis::open(
+                    crate::drivers::smc100::Smc100Settings {
+                        port: cfg.port.clone().unwrap_or_default(),
+                        address: cfg.device.unwrap_or(1),
+                        timeout: std::time::Duration::from_millis(300),
+                        retries: 2,
+                    },
+                    info,
+                )
+                .await?,
+            ),
             AxisDriver::Manual => Box::new(crate::drivers::manual::ManualAxis::new(
                 info,
                 Arc::new(Mutex::new((
@@ -201,6 +213,21 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                     crate::drivers::netft::NetFtSensor::open(settings, req.clock.clone()).await?,
                 )
             }
+            ForceDriver::AtiCan => {
+                let bus = can_bus(cfg.can_interface.as_deref().unwrap_or("can0"))?;
+                let settings = crate::drivers::ati_can::AtiCanSettings {
+                    base_id: cfg.base_id.unwrap_or(0),
+                    counts_per_n: cfg.counts_per_force.unwrap_or(f64::NAN),
+                    counts_per_nmm: cfg.counts_per_torque.unwrap_or(f64::NAN),
+                    timeout: std::time::Duration::from_millis(100),
+                    retries: 3,
+                    range: cfg.model.range(),
+                };
+                Box::new(
+                    crate::drivers::ati_can::AtiCanSensor::open(settings, bus, req.clock.clone())
+                        .await?,
+                )
+            }
         };
         rig.opened.push(OpenedDevice {
             role: "force".into(),
@@ -239,6 +266,7 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                 cam.repeat = cfg.repeat.unwrap_or(false);
                 Box::new(cam)
             }
+            CameraDriver::V4l2 => v4l2_camera(cfg, req.clock.clone())?,
         };
         rig.opened.push(OpenedDevice {
             role: "camera".into(),
@@ -264,4 +292,46 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
         rig.disturber = Some(d);
     }
     Ok(rig)
+}
+
+#[cfg(feature = "socketcan")]
+fn can_bus(interface: &str) -> Result<Box<dyn crate::drivers::can::CanBus>, RigError> {
+    Ok(Box::new(crate::drivers::can::SocketCanBus::open(
+        interface,
+    )?))
+}
+
+#[cfg(not(feature = "socketcan"))]
+fn can_bus(interface: &str) -> Result<Box<dyn crate::drivers::can::CanBus>, RigError> {
+    Err(RigError::Unsupported {
+        device: format!("CAN interface {interface}"),
+        detail: "this gelrig was built without SocketCAN; fix: rebuild with `--features socketcan`"
+            .into(),
+    })
+}
+
+#[cfg(feature = "v4l")]
+fn v4l2_camera(
+    cfg: &crate::config::CameraConfig,
+    clock: Clock,
+) -> Result<Box<dyn Camera>, RigError> {
+    let path = cfg.path.clone().unwrap_or_else(|| "/dev/video0".into());
+    Ok(Box::new(crate::drivers::v4l2::V4l2Camera::open(
+        &path,
+        cfg.width,
+        cfg.height,
+        cfg.fps.hz(),
+        clock,
+    )?))
+}
+
+#[cfg(not(feature = "v4l"))]
+fn v4l2_camera(
+    cfg: &crate::config::CameraConfig,
+    _clock: Clock,
+) -> Result<Box<dyn Camera>, RigError> {
+    Err(RigError::Unsupported {
+        device: format!("camera {}", cfg.path.as_deref().unwrap_or("/dev/video0")),
+        detail: "this gelrig was built without V4L2; fix: install libclang-dev and rebuild with `--features v4l`".into(),
+    })
 }

@@ -8,6 +8,9 @@ use rig::device::{Axis, AxisInfo};
 use rig::drivers::zaber::{ZaberAxis, ZaberSettings};
 use rig::twins::zaber::{TwinParams, ZaberTwin};
 use rig::units::AxisUnit;
+
+mod common;
+use common::wait_idle;
 use rig::{RigError, lock};
 
 const MICROSTEP_MM: f64 = 0.047625e-3;
@@ -43,18 +46,6 @@ fn settings(t: &ZaberTwin, checksum: bool) -> ZaberSettings {
         checksum,
         timeout: Duration::from_millis(150),
         retries: 2,
-    }
-}
-
-async fn wait_idle(a: &mut ZaberAxis) -> f64 {
-    let t0 = Instant::now();
-    loop {
-        let s = a.status().await.expect("status");
-        if !s.moving {
-            return s.position;
-        }
-        assert!(t0.elapsed() < Duration::from_secs(10), "never stopped");
-        tokio::time::sleep(Duration::from_millis(20)).await;
     }
 }
 

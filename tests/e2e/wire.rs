@@ -145,7 +145,7 @@ fn sim_serve_probe_and_a_run_through_the_real_drivers() {
     assert!(status.success(), "sim serve exits cleanly on SIGTERM");
     let (ok, out) = probe(&bound);
     assert!(
-        !ok && out.contains("no answer from: normal, force"),
+        !ok && out.contains("no answer from: normal, shear, force"),
         "{out}"
     );
 }

@@ -7,15 +7,14 @@
 //! Positions travel as microsteps; the rig file gives the microstep size in the axis unit.
 //! Serial I/O is blocking, so each transaction runs on tokio's blocking pool.
 
-use std::io::{BufRead, BufReader, Write};
-use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use async_trait::async_trait;
 
+use super::serial_line::{self, LinePort, Outcome};
 use super::zaber_ascii::{Reply, parse_reply, with_checksum};
+use crate::RigError;
 use crate::device::{Axis, AxisInfo, AxisStatus};
-use crate::{RigError, lock};
 
 /// How to reach one Zaber axis.
 #[derive(Debug, Clone, PartialEq)]
@@ -37,13 +36,11 @@ pub struct ZaberSettings {
     pub retries: u32,
 }
 
-type Port = Box<dyn serialport::SerialPort>;
-
 /// A Zaber axis behind [`Axis`].
 pub struct ZaberAxis {
     info: AxisInfo,
     settings: ZaberSettings,
-    port: Arc<Mutex<BufReader<Port>>>,
+    port: LinePort,
     next_id: u8,
     /// Last warning flag seen (e.g. `NI` after an interrupted move), for diagnostics.
     pub last_warning: Option<String>,
@@ -58,19 +55,11 @@ impl ZaberAxis {
     /// speed from the rig file; its identity is filled from the device.
     pub async fn open(settings: ZaberSettings, mut info: AxisInfo) -> Result<Self, RigError> {
         let name = device_name(&settings);
-        let port = serialport::new(&settings.port, 115_200)
-            .timeout(Duration::from_millis(20))
-            .open()
-            .map_err(|e| RigError::Io {
-                device: name.clone(),
-                source: std::io::Error::other(format!(
-                    "{e}; fix: check the `port:` path in the rig file"
-                )),
-            })?;
+        let port = serial_line::open(&settings.port, 115_200, false, &name)?;
         let mut axis = Self {
             info: info.clone(),
             settings,
-            port: Arc::new(Mutex::new(BufReader::new(port))),
+            port,
             next_id: 0,
             last_warning: None,
         };
@@ -154,59 +143,30 @@ enum Exchange {
     Io(std::io::Error),
 }
 
-/// One request/reply on the blocking pool.
+/// One request/reply on the blocking pool: the reply carrying our message id; `#` info and
+/// `!` alert lines and late replies to earlier ids are skipped.
 fn exchange(
-    port: &Mutex<BufReader<Port>>,
+    port: &LinePort,
     line: &str,
     id: u8,
     timeout: Duration,
     checksum: bool,
 ) -> Result<Reply, Exchange> {
-    let mut p = lock(port);
-    p.get_mut()
-        .write_all(line.as_bytes())
-        .map_err(Exchange::Io)?;
-    p.get_mut().flush().map_err(Exchange::Io)?;
-    let deadline = Instant::now() + timeout;
-    let mut buf = String::new();
-    let mut garbled = None;
-    while Instant::now() < deadline {
-        match p.read_line(&mut buf) {
-            Ok(0) => {
-                return Err(Exchange::Io(std::io::Error::other(
-                    "the port closed; fix: check the cable",
-                )));
-            }
-            Ok(_) if buf.ends_with('\n') => {
-                let l = std::mem::take(&mut buf);
-                let l = l.trim();
-                if l.is_empty() || l.starts_with('#') || l.starts_with('!') {
-                    continue;
-                }
-                if checksum && l.starts_with('@') && !l.contains(':') {
-                    garbled = Some(format!("`{l}` lacks its checksum"));
-                    continue;
-                }
-                match parse_reply(l) {
-                    Ok(r) if r.id == Some(id) => return Ok(r),
-                    // A late reply to an earlier (timed-out) command: not ours.
-                    Ok(_) => continue,
-                    Err(e) => garbled = Some(e),
-                }
-            }
-            Ok(_) => continue,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) =>
-            {
-                continue;
-            }
-            Err(e) => return Err(Exchange::Io(e)),
+    let judge = |l: &str| -> Result<Option<Reply>, String> {
+        if l.starts_with('#') || l.starts_with('!') {
+            return Ok(None);
         }
+        if checksum && l.starts_with('@') && !l.contains(':') {
+            return Err(format!("`{l}` lacks its checksum"));
+        }
+        parse_reply(l).map(|r| (r.id == Some(id)).then_some(r))
+    };
+    match serial_line::exchange(port, line, timeout, judge) {
+        Ok(Outcome::Answer(r)) => Ok(r),
+        Ok(Outcome::Nothing(Some(g))) => Err(Exchange::Garbled(g)),
+        Ok(Outcome::Nothing(None)) => Err(Exchange::Timeout),
+        Err(e) => Err(Exchange::Io(e)),
     }
-    Err(garbled.map_or(Exchange::Timeout, Exchange::Garbled))
 }
 
 #[async_trait]
@@ -221,15 +181,7 @@ impl Axis for ZaberAxis {
 
     async fn move_to(&mut self, target: f64, speed: f64) -> Result<(), RigError> {
         self.info.check_target(target)?;
-        let i = &self.info;
-        if !(speed > 0.0 && speed <= i.max_speed) {
-            return Err(RigError::BadSpeed {
-                axis: i.role.clone(),
-                speed,
-                max: i.max_speed,
-                unit: i.unit,
-            });
-        }
+        self.info.check_speed(speed)?;
         // Speed data = microsteps/s × 1.6384 (Zaber ASCII manual, `maxspeed`).
         let speed_data = ((speed / self.settings.microstep) * 1.6384)
             .round()

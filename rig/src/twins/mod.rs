@@ -2,5 +2,8 @@
 //! (pseudo-terminal, loopback socket), so tests and `gelrig sim serve` exercise the
 //! production drivers unchanged, including their handling of injected faults.
 
+pub mod ati_can;
 pub mod netft;
+pub mod pty;
+pub mod smc100;
 pub mod zaber;

@@ -6,31 +6,16 @@
 //! commanded speed in real time (`get pos` interpolates, BUSY until done); the travel
 //! limits reject with BADDATA; unknown commands BADCOMMAND, other axes BADAXIS; `WR`
 //! until homed (moves rejected); `NI` after a move interrupted by another move or `stop`.
-//! Faults are injected through [`Faults`].
+//! Faults are injected through [`Faults`] (see [`super::pty`]).
 
-use std::io::{Read, Write};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use serialport::{SerialPort, TTYPort};
+pub use super::pty::Faults;
+use super::pty::PtyTwin;
 
 use crate::drivers::zaber_ascii::{parse_command, with_checksum};
 use crate::lock;
-
-/// Faults to inject; change them at any time through [`ZaberTwin::faults`].
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Faults {
-    /// Drop every reply.
-    pub no_reply: bool,
-    /// Corrupt the next N replies (a flipped character, so the checksum or the grammar fails).
-    pub garble_next: u32,
-    /// Delay every reply by this long.
-    pub delay: Duration,
-    /// Close the port (the device was unplugged).
-    pub disconnect: bool,
-}
 
 /// Device parameters.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,34 +57,13 @@ struct State {
 
 /// A running twin.
 pub struct ZaberTwin {
-    path: String,
+    pty: PtyTwin,
     state: Arc<Mutex<State>>,
-    faults: Arc<Mutex<Faults>>,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-    transcript: Arc<Mutex<Vec<String>>>,
 }
-
-static PAIR: Mutex<()> = Mutex::new(());
 
 impl ZaberTwin {
     /// Starts a twin on a new pseudo-terminal.
     pub fn spawn(params: TwinParams) -> std::io::Result<Self> {
-        let (mut master, slave) = {
-            // `TTYPort::pair` is not thread-safe (serialport's own tests serialise it).
-            let _g = lock(&PAIR);
-            TTYPort::pair().map_err(std::io::Error::other)?
-        };
-        let path = slave
-            .name()
-            .ok_or_else(|| std::io::Error::other("pty without a name"))?;
-        drop(slave);
-        master
-            .set_timeout(Duration::from_millis(10))
-            .map_err(std::io::Error::other)?;
-        let faults = Arc::new(Mutex::new(Faults::default()));
-        let stop = Arc::new(AtomicBool::new(false));
-        let transcript = Arc::new(Mutex::new(Vec::new()));
         let state = Arc::new(Mutex::new(State {
             motion: Motion {
                 from: 0.0,
@@ -110,26 +74,17 @@ impl ZaberTwin {
             homed: false,
             interrupted: false,
         }));
-        let (f, s, t, st) = (
-            faults.clone(),
-            stop.clone(),
-            transcript.clone(),
-            state.clone(),
-        );
-        let thread = std::thread::spawn(move || serve(&mut master, &params, &f, &s, &t, &st));
-        Ok(Self {
-            path,
-            state,
-            faults,
-            stop,
-            thread: Some(thread),
-            transcript,
-        })
+        let st = state.clone();
+        let pty = PtyTwin::spawn(
+            move |line| respond(line, &params, &mut lock(&st)),
+            |r| r.replacen('@', "@X", 1).replace(" OK ", " 0K "),
+        )?;
+        Ok(Self { pty, state })
     }
 
     /// The pseudo-terminal path the driver opens.
     pub fn path(&self) -> &str {
-        &self.path
+        self.pty.path()
     }
 
     /// Where the stage is now, in microsteps (for coupling it to a simulated load).
@@ -139,82 +94,12 @@ impl ZaberTwin {
 
     /// The fault switches.
     pub fn faults(&self) -> &Arc<Mutex<Faults>> {
-        &self.faults
+        self.pty.faults()
     }
 
-    /// Every line received and sent (`> ` and `< `), for test diagnostics.
+    /// Every line received and sent, for test diagnostics.
     pub fn transcript(&self) -> Vec<String> {
-        lock(&self.transcript).clone()
-    }
-}
-
-impl Drop for ZaberTwin {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-fn serve(
-    master: &mut TTYPort,
-    p: &TwinParams,
-    faults: &Mutex<Faults>,
-    stop: &AtomicBool,
-    log: &Mutex<Vec<String>>,
-    state: &Mutex<State>,
-) {
-    let mut pending = Vec::new();
-    let mut buf = [0u8; 256];
-    while !stop.load(Ordering::Relaxed) {
-        if lock(faults).disconnect {
-            return;
-        }
-        let n = match master.read(&mut buf) {
-            Ok(n) => n,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) =>
-            {
-                continue;
-            }
-            // EIO while no driver holds the slave side open (before the first open, between
-            // probes): wait for the next one.
-            Err(_) => {
-                std::thread::sleep(Duration::from_millis(10));
-                continue;
-            }
-        };
-        pending.extend_from_slice(&buf[..n]);
-        while let Some(k) = pending.iter().position(|b| *b == b'\n' || *b == b'\r') {
-            let line: Vec<u8> = pending.drain(..=k).collect();
-            let line = String::from_utf8_lossy(&line).trim().to_string();
-            if line.is_empty() {
-                continue;
-            }
-            lock(log).push(format!("> {line}"));
-            let Some(reply) = respond(&line, p, &mut lock(state)) else {
-                continue;
-            };
-            let f = lock(faults).clone();
-            if f.no_reply {
-                continue;
-            }
-            let mut reply = reply;
-            if f.garble_next > 0 {
-                lock(faults).garble_next -= 1;
-                reply = reply.replacen('@', "@X", 1).replace(" OK ", " 0K ");
-            }
-            if !f.delay.is_zero() {
-                std::thread::sleep(f.delay);
-            }
-            lock(log).push(format!("< {reply}"));
-            // A driver that went away mid-reply: drop the reply, keep serving.
-            let _ = master.write_all(format!("{reply}\r\n").as_bytes());
-        }
+        self.pty.transcript()
     }
 }
 

@@ -1,0 +1,91 @@
+//! Line-oriented serial devices (Zaber ASCII, SMC100): opening a port by path and the
+//! write-a-command, read-lines-until-the-answer loop both drivers share.
+
+use std::io::{BufRead, BufReader, Write};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use crate::{RigError, lock};
+
+/// An open port with a line reader.
+pub(crate) type LinePort = Arc<Mutex<BufReader<Box<dyn serialport::SerialPort>>>>;
+
+/// Opens `path` at `baud` (XON/XOFF when `software_flow`), with a short read timeout so
+/// the reply loop can watch its own deadline.
+pub(crate) fn open(
+    path: &str,
+    baud: u32,
+    software_flow: bool,
+    device: &str,
+) -> Result<LinePort, RigError> {
+    let flow = if software_flow {
+        serialport::FlowControl::Software
+    } else {
+        serialport::FlowControl::None
+    };
+    let port = serialport::new(path, baud)
+        .flow_control(flow)
+        .timeout(Duration::from_millis(20))
+        .open()
+        .map_err(|e| RigError::Io {
+            device: device.to_string(),
+            source: std::io::Error::other(format!(
+                "{e}; fix: check the `port:` path in the rig file"
+            )),
+        })?;
+    Ok(Arc::new(Mutex::new(BufReader::new(port))))
+}
+
+/// What a reply loop saw.
+pub(crate) enum Outcome<T> {
+    /// The answer.
+    Answer(T),
+    /// Nothing usable before the deadline; the last unreadable line, if any.
+    Nothing(Option<String>),
+}
+
+/// Writes `line`, then hands every complete, non-empty line read before `timeout` to
+/// `judge`: `Ok(Some(answer))` ends the exchange, `Ok(None)` skips the line (not ours),
+/// `Err(why)` records it as garbled and keeps reading. I/O errors end it at once.
+pub(crate) fn exchange<T>(
+    port: &Mutex<BufReader<Box<dyn serialport::SerialPort>>>,
+    line: &str,
+    timeout: Duration,
+    mut judge: impl FnMut(&str) -> Result<Option<T>, String>,
+) -> std::io::Result<Outcome<T>> {
+    let mut p = lock(port);
+    p.get_mut().write_all(line.as_bytes())?;
+    p.get_mut().flush()?;
+    let deadline = Instant::now() + timeout;
+    let mut buf = String::new();
+    let mut garbled = None;
+    while Instant::now() < deadline {
+        match p.read_line(&mut buf) {
+            Ok(0) => {
+                return Err(std::io::Error::other(
+                    "the port closed; fix: check the cable",
+                ));
+            }
+            Ok(_) if buf.ends_with('\n') => {
+                let l = std::mem::take(&mut buf);
+                let l = l.trim();
+                if l.is_empty() {
+                    continue;
+                }
+                match judge(l) {
+                    Ok(Some(answer)) => return Ok(Outcome::Answer(answer)),
+                    Ok(None) => {}
+                    Err(why) => garbled = Some(why),
+                }
+            }
+            Ok(_) => {}
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
+                ) => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(Outcome::Nothing(garbled))
+}

@@ -1,0 +1,157 @@
+//! A line-oriented device on a pseudo-terminal: the twin holds the master side, the
+//! production driver opens the slave by its `/dev/pts/N` path exactly as it opens a real
+//! serial port. Lines end in CR, LF or CRLF; each goes to the device's handler, whose reply
+//! (if any) is sent back with CRLF, subject to the injected [`Faults`].
+
+use std::io::{Read, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use serialport::{SerialPort, TTYPort};
+
+use crate::lock;
+
+/// Faults to inject; change them at any time through [`PtyTwin::faults`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Faults {
+    /// Drop every reply.
+    pub no_reply: bool,
+    /// Corrupt the next N replies (characters flipped, so checksum or grammar fails).
+    pub garble_next: u32,
+    /// Delay every reply by this long.
+    pub delay: Duration,
+    /// Close the port (the device was unplugged).
+    pub disconnect: bool,
+}
+
+/// A running line device.
+pub struct PtyTwin {
+    path: String,
+    faults: Arc<Mutex<Faults>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+    transcript: Arc<Mutex<Vec<String>>>,
+}
+
+static PAIR: Mutex<()> = Mutex::new(());
+
+impl PtyTwin {
+    /// Opens a pseudo-terminal and serves `handler` on it until dropped. `garble` turns a
+    /// reply into a corrupted one.
+    pub fn spawn(
+        mut handler: impl FnMut(&str) -> Option<String> + Send + 'static,
+        garble: fn(&str) -> String,
+    ) -> std::io::Result<Self> {
+        let (mut master, slave) = {
+            // `TTYPort::pair` is not thread-safe (serialport's own tests serialise it).
+            let _g = lock(&PAIR);
+            TTYPort::pair().map_err(std::io::Error::other)?
+        };
+        let path = slave
+            .name()
+            .ok_or_else(|| std::io::Error::other("pty without a name"))?;
+        drop(slave);
+        master
+            .set_timeout(Duration::from_millis(10))
+            .map_err(std::io::Error::other)?;
+        let faults = Arc::new(Mutex::new(Faults::default()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let transcript = Arc::new(Mutex::new(Vec::new()));
+        let (f, s, t) = (faults.clone(), stop.clone(), transcript.clone());
+        let thread =
+            std::thread::spawn(move || serve(&mut master, &mut handler, garble, &f, &s, &t));
+        Ok(Self {
+            path,
+            faults,
+            stop,
+            thread: Some(thread),
+            transcript,
+        })
+    }
+
+    /// The pseudo-terminal path the driver opens.
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// The fault switches.
+    pub fn faults(&self) -> &Arc<Mutex<Faults>> {
+        &self.faults
+    }
+
+    /// Every line received and sent (`> ` and `< `), for test diagnostics.
+    pub fn transcript(&self) -> Vec<String> {
+        lock(&self.transcript).clone()
+    }
+}
+
+impl Drop for PtyTwin {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn serve(
+    master: &mut TTYPort,
+    handler: &mut dyn FnMut(&str) -> Option<String>,
+    garble: fn(&str) -> String,
+    faults: &Mutex<Faults>,
+    stop: &AtomicBool,
+    log: &Mutex<Vec<String>>,
+) {
+    let mut pending = Vec::new();
+    let mut buf = [0u8; 256];
+    while !stop.load(Ordering::Relaxed) {
+        if lock(faults).disconnect {
+            return;
+        }
+        let n = match master.read(&mut buf) {
+            Ok(n) => n,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
+                ) =>
+            {
+                continue;
+            }
+            // EIO while no driver holds the slave side open (before the first open, between
+            // probes): wait for the next one.
+            Err(_) => {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            }
+        };
+        pending.extend_from_slice(&buf[..n]);
+        while let Some(k) = pending.iter().position(|b| *b == b'\n' || *b == b'\r') {
+            let line: Vec<u8> = pending.drain(..=k).collect();
+            let line = String::from_utf8_lossy(&line).trim().to_string();
+            if line.is_empty() {
+                continue;
+            }
+            lock(log).push(format!("> {line}"));
+            let Some(mut reply) = handler(&line) else {
+                continue;
+            };
+            let f = lock(faults).clone();
+            if f.no_reply {
+                continue;
+            }
+            if f.garble_next > 0 {
+                lock(faults).garble_next -= 1;
+                reply = garble(&reply);
+            }
+            if !f.delay.is_zero() {
+                std::thread::sleep(f.delay);
+            }
+            lock(log).push(format!("< {reply}"));
+            // A driver that went away mid-reply: drop the reply, keep serving.
+            let _ = master.write_all(format!("{reply}\r\n").as_bytes());
+        }
+    }
+}

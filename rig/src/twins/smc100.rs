@@ -1,0 +1,197 @@
+//! A Newport SMC100 controller on a pseudo-terminal (spec `devices.md` §5, "SMC100").
+//!
+//! States: NOT REFERENCED (0A) → `OR` → HOMING (1E) → READY from homing (32); `PA`/`PR` →
+//! MOVING (28) → READY from moving (33). Set commands are silent; `TP`, `TS`, `TE`, `ID?`,
+//! `VA?` reply. Illegal-state commands latch `TE` = H (not referenced), M (moving), E (home
+//! already started); targets beyond `SL`/`SR` latch C and do not move; unknown commands
+//! latch A. `TE` reports the latched error and clears it. A wrong address gets no reply.
+
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+pub use super::pty::Faults;
+use super::pty::PtyTwin;
+use crate::lock;
+
+/// Controller parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwinParams {
+    /// Address (1–31).
+    pub address: u8,
+    /// Software limits `SL`, `SR`, mm.
+    pub limits: (f64, f64),
+    /// Homing speed, mm/s.
+    pub home_speed: f64,
+}
+
+struct State {
+    from: f64,
+    to: f64,
+    start: Instant,
+    speed: f64,
+    referenced: bool,
+    homing: bool,
+    error: char,
+    velocity: f64,
+}
+
+impl State {
+    fn at(&self, now: Instant) -> (f64, bool) {
+        let d = self.to - self.from;
+        let travelled = self.speed * now.saturating_duration_since(self.start).as_secs_f64();
+        if travelled >= d.abs() {
+            (self.to, false)
+        } else {
+            (self.from + d.signum() * travelled, true)
+        }
+    }
+}
+
+/// A running controller twin.
+pub struct Smc100Twin {
+    pty: PtyTwin,
+    state: Arc<Mutex<State>>,
+}
+
+impl Smc100Twin {
+    /// Starts a controller on a new pseudo-terminal, at an unknown position, NOT REFERENCED.
+    pub fn spawn(params: TwinParams) -> std::io::Result<Self> {
+        let state = Arc::new(Mutex::new(State {
+            from: 3.3,
+            to: 3.3,
+            start: Instant::now(),
+            speed: 1.0,
+            referenced: false,
+            homing: false,
+            error: '@',
+            velocity: 1.0,
+        }));
+        let st = state.clone();
+        let pty = PtyTwin::spawn(
+            move |line| respond(line, &params, &mut lock(&st)),
+            |r| r.replacen("TP", "T?", 1).replacen("TE", "T#", 1),
+        )?;
+        Ok(Self { pty, state })
+    }
+
+    /// The pseudo-terminal path the driver opens.
+    pub fn path(&self) -> &str {
+        self.pty.path()
+    }
+
+    /// The fault switches.
+    pub fn faults(&self) -> &Arc<Mutex<Faults>> {
+        self.pty.faults()
+    }
+
+    /// Where the stage is now, mm.
+    pub fn position_mm(&self) -> f64 {
+        lock(&self.state).at(Instant::now()).0
+    }
+}
+
+fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
+    let digits = line.chars().take_while(char::is_ascii_digit).count();
+    let address: u8 = line[..digits].parse().ok()?;
+    if address != p.address {
+        return None;
+    }
+    let rest = &line[digits..];
+    let (cmd, value) = rest.split_at(rest.len().min(2));
+    let now = Instant::now();
+    let (pos, moving) = st.at(now);
+    if !moving && st.homing {
+        st.homing = false;
+        st.referenced = true;
+    }
+    let state_code = if !st.referenced && !st.homing {
+        "0A"
+    } else if st.homing {
+        "1E"
+    } else if moving {
+        "28"
+    } else {
+        "33"
+    };
+    let reply = |s: String| Some(format!("{address}{s}"));
+    let go = |st: &mut State, to: f64| {
+        if !st.referenced {
+            st.error = 'H';
+        } else if moving {
+            st.error = 'M';
+        } else if to < p.limits.0 || to > p.limits.1 {
+            st.error = 'C';
+        } else {
+            *st = State {
+                from: pos,
+                to,
+                start: now,
+                speed: st.velocity,
+                ..*st
+            };
+        }
+    };
+    match (cmd, value) {
+        ("TP", "") => reply(format!("TP{pos:.5}")),
+        ("TS", "") => reply(format!("TS0000{state_code}")),
+        ("TE", "") => {
+            let e = st.error;
+            st.error = '@';
+            reply(format!("TE{e}"))
+        }
+        ("ID", "?") => reply("IDSMC100CC_TWIN".into()),
+        ("VA", "?") => reply(format!("VA{}", st.velocity)),
+        ("VA", v) => {
+            match v.parse::<f64>() {
+                Ok(v) if v > 0.0 => st.velocity = v,
+                _ => st.error = 'C',
+            }
+            None
+        }
+        ("OR", "") => {
+            if st.homing {
+                st.error = 'E';
+            } else if st.referenced {
+                st.error = 'K';
+            } else {
+                *st = State {
+                    from: pos,
+                    to: 0.0,
+                    start: now,
+                    speed: p.home_speed,
+                    homing: true,
+                    ..*st
+                };
+            }
+            None
+        }
+        ("PA", v) => {
+            match v.parse::<f64>() {
+                Ok(to) => go(st, to),
+                Err(_) => st.error = 'C',
+            }
+            None
+        }
+        ("PR", v) => {
+            match v.parse::<f64>() {
+                Ok(d) => go(st, pos + d),
+                Err(_) => st.error = 'C',
+            }
+            None
+        }
+        ("ST", "") => {
+            *st = State {
+                from: pos,
+                to: pos,
+                start: now,
+                homing: false,
+                ..*st
+            };
+            None
+        }
+        _ => {
+            st.error = 'A';
+            None
+        }
+    }
+}

@@ -1,0 +1,115 @@
+//! The production SMC100 driver against its twin over a pseudo-terminal: the state
+//! machine (NOT REFERENCED → homing → READY → MOVING), silent set commands checked through
+//! `TE`, limits, and injected faults.
+
+use std::time::{Duration, Instant};
+
+use rig::device::{Axis, AxisInfo};
+use rig::drivers::smc100::{Smc100Axis, Smc100Settings};
+use rig::twins::smc100::{Smc100Twin, TwinParams};
+use rig::units::AxisUnit;
+
+mod common;
+use common::wait_idle;
+use rig::{RigError, lock};
+
+fn twin() -> Smc100Twin {
+    Smc100Twin::spawn(TwinParams {
+        address: 1,
+        limits: (0.0, 12.0),
+        home_speed: 20.0,
+    })
+    .expect("a pty")
+}
+
+fn settings(t: &Smc100Twin) -> Smc100Settings {
+    Smc100Settings {
+        port: t.path().into(),
+        address: 1,
+        timeout: Duration::from_millis(150),
+        retries: 2,
+    }
+}
+
+fn info(max: f64) -> AxisInfo {
+    AxisInfo {
+        role: "shear".into(),
+        unit: AxisUnit::Mm,
+        travel_min: 0.0,
+        travel_max: max,
+        max_speed: 5.0,
+        resolution: 0.0001,
+        identity: String::new(),
+    }
+}
+
+#[tokio::test]
+async fn homes_from_not_referenced_and_moves() {
+    let t = twin();
+    let mut a = Smc100Axis::open(settings(&t), info(12.0))
+        .await
+        .expect("opens");
+    assert!(
+        a.info().identity.contains("SMC100"),
+        "{}",
+        a.info().identity
+    );
+    let s = a.status().await.expect("status");
+    assert!(!s.referenced && (s.position - 3.3).abs() < 1e-6, "{s:?}");
+    // PA while NOT REFERENCED: the controller latches TE = H.
+    assert!(matches!(
+        a.move_to(1.0, 1.0).await,
+        Err(RigError::NotReferenced { .. })
+    ));
+    a.home().await.expect("home");
+    assert!(a.status().await.expect("status").moving, "homing");
+    assert!(wait_idle(&mut a).await.abs() < 1e-9);
+    assert!(a.status().await.expect("status").referenced);
+    a.home()
+        .await
+        .expect("homing a referenced stage is a no-op");
+    a.move_to(0.5, 4.0).await.expect("move");
+    assert!((wait_idle(&mut a).await - 0.5).abs() < 1e-5);
+    // Moving while moving: TE = M, reported with its meaning.
+    a.move_to(5.0, 1.0).await.expect("move");
+    let e = a.move_to(6.0, 1.0).await.expect_err("busy");
+    assert!(e.to_string().contains("not allowed while moving"), "{e}");
+    a.stop().await.expect("stop");
+    let p = wait_idle(&mut a).await;
+    assert!(p > 0.5 && p < 5.0, "{p}");
+}
+
+#[tokio::test]
+async fn the_controllers_own_limits_and_faults() {
+    let t = twin();
+    // The rig file allows 20 mm; the controller's SR is 12 mm: TE = C, nothing moves.
+    let mut a = Smc100Axis::open(settings(&t), info(20.0))
+        .await
+        .expect("opens");
+    a.home().await.expect("home");
+    wait_idle(&mut a).await;
+    let e = a.move_to(15.0, 1.0).await.expect_err("beyond SR");
+    assert!(e.to_string().contains("out of range"), "{e}");
+    assert!(a.status().await.expect("status").position.abs() < 1e-9);
+    // No reply: a bounded timeout.
+    lock(t.faults()).no_reply = true;
+    let t0 = Instant::now();
+    assert!(matches!(a.status().await, Err(RigError::Timeout { .. })));
+    assert!(t0.elapsed() < Duration::from_secs(2));
+    lock(t.faults()).no_reply = false;
+    // One garbled reply is retried; persistent garbage is reported.
+    lock(t.faults()).garble_next = 1;
+    a.status().await.expect("retried");
+    lock(t.faults()).garble_next = 20;
+    assert!(matches!(a.status().await, Err(RigError::Garbled { .. })));
+    lock(t.faults()).garble_next = 0;
+    // A wrong address never answers (the port is free again once the axis is dropped;
+    // serial ports open exclusively).
+    drop(a);
+    let mut s = settings(&t);
+    s.address = 7;
+    assert!(matches!(
+        Smc100Axis::open(s, info(12.0)).await,
+        Err(RigError::Timeout { .. })
+    ));
+}

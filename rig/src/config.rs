@@ -123,6 +123,9 @@ pub struct AxisConfig {
     /// Zaber LRC checksums on every message (default true).
     #[serde(default)]
     pub checksum: Option<bool>,
+    /// Register map of a `modbus` axis.
+    #[serde(default)]
+    pub modbus: Option<crate::drivers::modbus::ModbusMap>,
 }
 
 impl AxisConfig {
@@ -154,6 +157,8 @@ pub enum AxisDriver {
     Manual,
     /// A Newport SMC100 / CONEX-CC controller on `port` at address `device` (default 1).
     Smc100,
+    /// A Modbus TCP drive described by the `modbus:` register map.
+    Modbus,
 }
 
 /// The force/torque sensor.
@@ -427,6 +432,24 @@ impl RigConfig {
         }
         for (role, axis) in &self.axes {
             let at = YamlPath::root().key("axes").key(role.name());
+            if matches!(axis.driver, AxisDriver::Modbus) {
+                match &axis.modbus {
+                    None => issues.push(ConfigIssue {
+                        path: at.key("driver"),
+                        message: "a modbus axis needs its register map".into(),
+                        fix: "add a `modbus:` section (address, slave, steps_per_unit, target, speed, trigger, position, status, bits, home, stop); see the README".into(),
+                    }),
+                    Some(map) => {
+                        for (field, msg) in map.problems() {
+                            issues.push(ConfigIssue {
+                                path: at.key("modbus").key(field),
+                                message: format!("register map: {msg}"),
+                                fix: "use the addresses and bits from the drive's manual".into(),
+                            });
+                        }
+                    }
+                }
+            }
             if matches!(axis.driver, AxisDriver::Smc100) && axis.port.is_none() {
                 issues.push(ConfigIssue {
                     path: at.key("driver"),

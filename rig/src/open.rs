@@ -167,6 +167,10 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                 )
                 .await?,
             ),
+            AxisDriver::Modbus => match cfg.modbus.clone() {
+                Some(map) => Box::new(crate::drivers::modbus::ModbusAxis::open(map, info).await?),
+                None => return Err(missing(&format!("{role} axis register map"), config)),
+            },
             AxisDriver::Manual => Box::new(crate::drivers::manual::ManualAxis::new(
                 info,
                 Arc::new(Mutex::new((

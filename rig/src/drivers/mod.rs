@@ -5,6 +5,7 @@ pub mod ati_can;
 pub mod can;
 pub mod image_folder;
 pub mod manual;
+pub mod modbus;
 pub mod netft;
 pub mod netft_rdt;
 mod serial_line;

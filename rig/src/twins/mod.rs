@@ -3,6 +3,7 @@
 //! production drivers unchanged, including their handling of injected faults.
 
 pub mod ati_can;
+pub mod modbus;
 pub mod netft;
 pub mod pty;
 pub mod smc100;

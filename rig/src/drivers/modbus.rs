@@ -1,0 +1,336 @@
+//! A Modbus stage (e.g. an Oriental AZ drive, spec `devices.md` §2d) over Modbus TCP
+//! through `tokio-modbus`, with its register map in the rig file and validated at load.
+//!
+//! A move writes the target and speed (32-bit, two registers each, in the map's word
+//! order) and then the trigger; the status register's bits say busy, alarm and homed.
+//! Both error layers of `tokio-modbus` are kept apart: a transport error is a timeout or
+//! I/O failure, an exception is the drive refusing (`IllegalDataValue` for a target beyond
+//! its limits, `ServerDeviceBusy`, …). Every request has a timeout.
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use async_trait::async_trait;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use tokio_modbus::client::{Context, Reader, Writer};
+use tokio_modbus::{Slave, client::tcp};
+
+use crate::RigError;
+use crate::device::{Axis, AxisInfo, AxisStatus};
+
+/// Order of the two 16-bit words of a 32-bit value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum WordOrder {
+    /// Upper word first (Oriental, most drives).
+    #[default]
+    HighFirst,
+    /// Lower word first.
+    LowFirst,
+}
+
+impl WordOrder {
+    /// A 32-bit value as two registers.
+    pub fn split(self, v: i32) -> [u16; 2] {
+        let (hi, lo) = ((v as u32 >> 16) as u16, v as u32 as u16);
+        match self {
+            WordOrder::HighFirst => [hi, lo],
+            WordOrder::LowFirst => [lo, hi],
+        }
+    }
+
+    /// Two registers as a 32-bit value.
+    pub fn join(self, w: [u16; 2]) -> i32 {
+        let (hi, lo) = match self {
+            WordOrder::HighFirst => (w[0], w[1]),
+            WordOrder::LowFirst => (w[1], w[0]),
+        };
+        ((hi as u32) << 16 | lo as u32) as i32
+    }
+}
+
+/// One register write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RegWrite {
+    /// Register address.
+    pub addr: u16,
+    /// Value written.
+    pub value: u16,
+}
+
+/// The drive's register map.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ModbusMap {
+    /// Modbus TCP address of the drive (`host:502`).
+    pub address: String,
+    /// Slave (unit) id.
+    pub slave: u8,
+    /// Word order of 32-bit values.
+    #[serde(default)]
+    pub word_order: WordOrder,
+    /// Drive steps per axis unit (mm or deg).
+    pub steps_per_unit: f64,
+    /// First of two registers taking the target position, steps.
+    pub target: u16,
+    /// First of two registers taking the speed, steps/s.
+    pub speed: u16,
+    /// Written after target and speed to start the move.
+    pub trigger: RegWrite,
+    /// First of two registers holding the actual position, steps.
+    pub position: u16,
+    /// Status register.
+    pub status: u16,
+    /// Status bit set while moving.
+    pub busy_bit: u8,
+    /// Status bit set on an alarm.
+    pub alarm_bit: u8,
+    /// Status bit set once homed (absent: always referenced).
+    #[serde(default)]
+    pub homed_bit: Option<u8>,
+    /// Starts homing.
+    pub home: RegWrite,
+    /// Stops motion.
+    pub stop: RegWrite,
+    /// Reply timeout, ms (default 200).
+    #[serde(default)]
+    pub timeout_ms: Option<u64>,
+}
+
+impl ModbusMap {
+    /// What is wrong with the map, as (field, message) pairs; empty when usable.
+    pub fn problems(&self) -> Vec<(&'static str, String)> {
+        let mut p = Vec::new();
+        if !(self.steps_per_unit.is_finite() && self.steps_per_unit > 0.0) {
+            p.push(("steps_per_unit", "must be a positive number".to_string()));
+        }
+        for (name, bit) in [
+            ("busy_bit", Some(self.busy_bit)),
+            ("alarm_bit", Some(self.alarm_bit)),
+            ("homed_bit", self.homed_bit),
+        ] {
+            if bit.is_some_and(|b| b > 15) {
+                p.push((name, "a register has bits 0–15".to_string()));
+            }
+        }
+        // 32-bit values take two registers; no two fields may share one.
+        let mut used: Vec<(u16, &'static str)> = Vec::new();
+        for (name, addr, n) in [
+            ("target", self.target, 2u16),
+            ("speed", self.speed, 2),
+            ("position", self.position, 2),
+            ("status", self.status, 1),
+        ] {
+            for a in addr..addr.saturating_add(n) {
+                if let Some((_, other)) = used.iter().find(|(u, _)| *u == a) {
+                    p.push((name, format!("register {a:#06x} is also `{other}`")));
+                }
+                used.push((a, name));
+            }
+        }
+        if self.address.parse::<SocketAddr>().is_err() {
+            p.push(("address", format!("`{}` is not host:port", self.address)));
+        }
+        p
+    }
+
+    fn timeout(&self) -> Duration {
+        Duration::from_millis(self.timeout_ms.unwrap_or(200))
+    }
+}
+
+/// The driver.
+pub struct ModbusAxis {
+    info: AxisInfo,
+    map: ModbusMap,
+    ctx: Context,
+}
+
+impl ModbusAxis {
+    /// Connects to the drive and reads its status once.
+    pub async fn open(map: ModbusMap, mut info: AxisInfo) -> Result<Self, RigError> {
+        let device = format!("Modbus drive {} unit {}", map.address, map.slave);
+        if let Some((field, msg)) = map.problems().into_iter().next() {
+            return Err(RigError::Unsupported {
+                device,
+                detail: format!("register map `{field}`: {msg}"),
+            });
+        }
+        let addr: SocketAddr = map.address.parse().map_err(|_| RigError::Unsupported {
+            device: device.clone(),
+            detail: "bad address".into(),
+        })?;
+        let ctx = tokio::time::timeout(map.timeout(), tcp::connect_slave(addr, Slave(map.slave)))
+            .await
+            .map_err(|_| RigError::Timeout {
+                device: device.clone(),
+                timeout_ms: map.timeout().as_millis() as u64,
+            })?
+            .map_err(|source| RigError::Io {
+                device: device.clone(),
+                source,
+            })?;
+        info.identity = device;
+        let mut a = Self { info, map, ctx };
+        a.status().await?;
+        Ok(a)
+    }
+
+    fn name(&self) -> String {
+        self.info.identity.clone()
+    }
+
+    /// Maps both error layers of a request.
+    async fn call<T>(
+        &mut self,
+        what: &str,
+        f: impl AsyncFnOnce(&mut Context) -> tokio_modbus::Result<T>,
+    ) -> Result<T, RigError> {
+        let timeout = self.map.timeout();
+        let name = self.name();
+        match tokio::time::timeout(timeout, f(&mut self.ctx)).await {
+            Err(_) => Err(RigError::Timeout {
+                device: name,
+                timeout_ms: timeout.as_millis() as u64,
+            }),
+            Ok(Err(e)) => Err(RigError::Io {
+                device: name,
+                source: std::io::Error::other(e.to_string()),
+            }),
+            Ok(Ok(Err(exception))) => Err(RigError::Rejected {
+                device: name,
+                command: what.to_string(),
+                reason: exception.to_string(),
+            }),
+            Ok(Ok(Ok(v))) => Ok(v),
+        }
+    }
+
+    async fn write(&mut self, what: &str, w: RegWrite) -> Result<(), RigError> {
+        self.call(what, async |c: &mut Context| {
+            c.write_single_register(w.addr, w.value).await
+        })
+        .await
+    }
+}
+
+#[async_trait]
+impl Axis for ModbusAxis {
+    fn info(&self) -> &AxisInfo {
+        &self.info
+    }
+
+    async fn home(&mut self) -> Result<(), RigError> {
+        let w = self.map.home;
+        self.write("home", w).await
+    }
+
+    async fn move_to(&mut self, target: f64, speed: f64) -> Result<(), RigError> {
+        self.info.check_target(target)?;
+        self.info.check_speed(speed)?;
+        let m = self.map.clone();
+        let steps = (target * m.steps_per_unit).round() as i32;
+        let sps = (speed * m.steps_per_unit).round().max(1.0) as i32;
+        self.call("target", async |c: &mut Context| {
+            c.write_multiple_registers(m.target, &m.word_order.split(steps))
+                .await
+        })
+        .await?;
+        self.call("speed", async |c: &mut Context| {
+            c.write_multiple_registers(m.speed, &m.word_order.split(sps))
+                .await
+        })
+        .await?;
+        self.write("move", m.trigger).await
+    }
+
+    async fn status(&mut self) -> Result<AxisStatus, RigError> {
+        let m = self.map.clone();
+        let pos = self
+            .call("read position", async |c: &mut Context| {
+                c.read_holding_registers(m.position, 2).await
+            })
+            .await?;
+        let st = self
+            .call("read status", async |c: &mut Context| {
+                c.read_holding_registers(m.status, 1).await
+            })
+            .await?;
+        let (Some(&p0), Some(&p1), Some(&s)) = (pos.first(), pos.get(1), st.first()) else {
+            return Err(RigError::Garbled {
+                device: self.name(),
+                detail: "short register reply".into(),
+            });
+        };
+        if s & (1 << m.alarm_bit) != 0 {
+            return Err(RigError::Rejected {
+                device: self.name(),
+                command: "status".into(),
+                reason:
+                    "the drive is in alarm; fix: clear it (ALM-RST) and check the travel limits"
+                        .into(),
+            });
+        }
+        Ok(AxisStatus {
+            position: m.word_order.join([p0, p1]) as f64 / m.steps_per_unit,
+            moving: s & (1 << m.busy_bit) != 0,
+            referenced: m.homed_bit.is_none_or(|b| s & (1 << b) != 0),
+        })
+    }
+
+    async fn stop(&mut self) -> Result<(), RigError> {
+        let w = self.map.stop;
+        self.write("stop", w).await
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn words_and_map_checks() {
+        for o in [WordOrder::HighFirst, WordOrder::LowFirst] {
+            for v in [0, 1, -1, 123_456_789, i32::MIN, i32::MAX] {
+                assert_eq!(o.join(o.split(v)), v);
+            }
+        }
+        assert_eq!(WordOrder::HighFirst.split(0x0001_0002), [1, 2]);
+        let mut m = ModbusMap {
+            address: "127.0.0.1:502".into(),
+            slave: 1,
+            word_order: WordOrder::HighFirst,
+            steps_per_unit: 500.0,
+            target: 0x5C,
+            speed: 0x5E,
+            trigger: RegWrite {
+                addr: 0x66,
+                value: 1,
+            },
+            position: 0x120,
+            status: 0x7F,
+            busy_bit: 8,
+            alarm_bit: 7,
+            homed_bit: Some(4),
+            home: RegWrite {
+                addr: 0x7D,
+                value: 0x10,
+            },
+            stop: RegWrite {
+                addr: 0x7D,
+                value: 0x20,
+            },
+            timeout_ms: None,
+        };
+        assert!(m.problems().is_empty(), "{:?}", m.problems());
+        m.speed = 0x5D;
+        m.busy_bit = 16;
+        let p = m.problems();
+        assert!(
+            p.iter().any(|(f, _)| *f == "speed") && p.iter().any(|(f, _)| *f == "busy_bit"),
+            "{p:?}"
+        );
+    }
+}

@@ -129,3 +129,20 @@ fn sigkill_keeps_every_completed_step_and_shows_as_interrupted() {
     assert!(text.contains("interrupted"), "{text}");
     assert!(!text.contains("running"), "{text}");
 }
+
+#[test]
+fn a_closed_output_pipe_ends_the_command_quietly() {
+    // `gelrig schema | true`: the reader is gone before gelrig has started writing (the
+    // schema fits a pipe buffer, so closing after reading would not reach the write).
+    let mut child = std::process::Command::new(crate::support::gelrig())
+        .arg("schema")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?} {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+}

@@ -4,6 +4,19 @@
 //! Exit codes: 0 success; 1 run failed or other error; 2 invalid protocol, rig or tracking
 //! input (or bad command line); 3 run aborted by a safety limit or settle timeout; 130 run interrupted.
 
+/// `println!` that ends the program quietly when stdout is a closed pipe (`gelrig runs |
+/// head`) instead of panicking; other write errors are ignored.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout().lock(), $($arg)*)
+            && e.kind() == std::io::ErrorKind::BrokenPipe
+        {
+            std::process::exit(0);
+        }
+    }};
+}
+
 mod cmd;
 
 use std::process::ExitCode;

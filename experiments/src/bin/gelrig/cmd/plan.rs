@@ -24,7 +24,7 @@ impl Cmd {
         };
         let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
         if self.json {
-            println!("{}", serde_json::to_string_pretty(&plan)?);
+            out!("{}", serde_json::to_string_pretty(&plan)?);
         } else {
             print!("{}", plan.render(&loaded.protocol, &loaded.rig));
         }

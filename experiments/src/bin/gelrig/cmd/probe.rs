@@ -31,7 +31,7 @@ impl Cmd {
         let results = rt.block_on(probe(&rig));
         let mut failed = Vec::new();
         for p in &results {
-            println!(
+            out!(
                 "{:<9} {} {}",
                 p.role,
                 if p.ok { "ok  " } else { "FAIL" },
@@ -42,7 +42,7 @@ impl Cmd {
             }
         }
         if failed.is_empty() {
-            println!("every device answered");
+            out!("every device answered");
             Ok(ExitCode::SUCCESS)
         } else {
             eprintln!("error: no answer from: {}", failed.join(", "));

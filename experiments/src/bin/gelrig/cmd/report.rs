@@ -21,8 +21,8 @@ impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
         match report(&self.run, self.out.as_deref()) {
             Ok(w) => {
-                println!("sections: {}", w.sections.join("; "));
-                println!("wrote {}", w.dir.join("report.html").display());
+                out!("sections: {}", w.sections.join("; "));
+                out!("wrote {}", w.dir.join("report.html").display());
                 Ok(ExitCode::SUCCESS)
             }
             Err(e @ ReportError::Write { .. }) => Err(e.into()),

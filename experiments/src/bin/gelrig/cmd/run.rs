@@ -105,7 +105,7 @@ impl Cmd {
             .await
         });
         let outcome = outcome.context("recording the run")?;
-        println!("{}", outcome.dir.display());
+        out!("{}", outcome.dir.display());
         let status = outcome.status.name();
         match &outcome.message {
             Some(m) => eprintln!("run {status}: {m}"),

@@ -15,12 +15,15 @@ impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
         let runs = experiments::runs::list(&self.dir).map_err(anyhow::Error::msg)?;
         if runs.is_empty() {
-            println!("no runs in {}", self.dir.display());
+            out!("no runs in {}", self.dir.display());
             return Ok(ExitCode::SUCCESS);
         }
-        println!(
+        out!(
             "{:<12} {:>7}  {:<22} {:<32} dir / note",
-            "status", "steps", "protocol", "started"
+            "status",
+            "steps",
+            "protocol",
+            "started"
         );
         for r in runs {
             let name = r
@@ -28,12 +31,15 @@ impl Cmd {
                 .file_name()
                 .map(|n| n.to_string_lossy().to_string())
                 .unwrap_or_default();
-            println!(
+            out!(
                 "{:<12} {:>7}  {:<22} {:<32} {name}",
-                r.status, r.steps, r.protocol, r.started
+                r.status,
+                r.steps,
+                r.protocol,
+                r.started
             );
             if !r.note.is_empty() {
-                println!("{:<12} {:>7}  {}", "", "", r.note);
+                out!("{:<12} {:>7}  {}", "", "", r.note);
             }
         }
         Ok(ExitCode::SUCCESS)

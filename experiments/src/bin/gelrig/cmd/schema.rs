@@ -17,7 +17,7 @@ impl Cmd {
         } else {
             schemars::schema_for!(experiments::protocol::schema::Protocol)
         };
-        println!("{}", serde_json::to_string_pretty(&schema)?);
+        out!("{}", serde_json::to_string_pretty(&schema)?);
         Ok(ExitCode::SUCCESS)
     }
 }

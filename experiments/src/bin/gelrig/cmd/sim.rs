@@ -52,18 +52,18 @@ impl Cmd {
         write_bound(&served, &out).with_context(|| format!("writing {}", out.display()))?;
         for (role, a) in &served.bound.axes {
             if let Some(p) = &a.port {
-                println!("{role}: zaber twin on {p}");
+                out!("{role}: zaber twin on {p}");
             }
         }
         if let Some(f) = &served.bound.force
             && let Some(a) = &f.address
         {
-            println!(
+            out!(
                 "force: net f/t twin at {a} (calibration port {})",
                 f.calibration_port.unwrap_or(0)
             );
         }
-        println!("wrote {}; Ctrl-C to stop", out.display());
+        out!("wrote {}; Ctrl-C to stop", out.display());
         let stop = Arc::new(AtomicBool::new(false));
         let contact = rig.sim.as_ref().map_or(10.0, |s| s.normal_contact.mm());
         let rt = tokio::runtime::Builder::new_current_thread()
@@ -85,7 +85,7 @@ impl Cmd {
             stop.store(true, std::sync::atomic::Ordering::Relaxed);
             waited.context("waiting for Ctrl-C")
         })?;
-        println!("twins stopped");
+        out!("twins stopped");
         Ok(ExitCode::SUCCESS)
     }
 }

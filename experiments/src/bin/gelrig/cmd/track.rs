@@ -74,7 +74,7 @@ impl Cmd {
                 return Ok(ExitCode::from(super::EXIT_INVALID));
             }
         };
-        println!(
+        out!(
             "tracked {} frames, {} markers (spacing {:.1} px), method {}",
             summary.frames,
             summary.markers,
@@ -91,8 +91,8 @@ impl Cmd {
             .filter(|(_, n)| *n > 0)
             .map(|(s, n)| format!("{s} {n}"))
             .collect();
-        println!("marker states after the reference: {}", states.join(", "));
-        println!(
+        out!("marker states after the reference: {}", states.join(", "));
+        out!(
             "median {:.3} ms per frame (detection + identity{})",
             summary.median_ms_per_frame,
             if self.method == Method::Centroid {
@@ -102,17 +102,17 @@ impl Cmd {
             }
         );
         if let Some((frame, disp)) = summary.largest {
-            println!("largest deformation: frame {frame}, median displacement {disp:.2} px");
+            out!("largest deformation: frame {frame}, median displacement {disp:.2} px");
         }
         if let Some((rms, worst, n)) = summary.truth {
-            println!(
+            out!(
                 "against the simulator's exact centres: rms {rms:.4} px, worst {worst:.3} px \
                  ({n} tracked positions)"
             );
         }
-        println!("wrote {}", summary.markers_csv.display());
+        out!("wrote {}", summary.markers_csv.display());
         if let Some(dir) = &self.field {
-            println!(
+            out!(
                 "wrote field pictures and decomposition tables to {}",
                 dir.display()
             );

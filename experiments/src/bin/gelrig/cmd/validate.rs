@@ -17,7 +17,7 @@ impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
         match super::load_or_report(&self.protocol, self.rig.as_deref()) {
             Ok(loaded) => {
-                println!(
+                out!(
                     "{}: ok ({} steps on rig {}, {} warning(s))",
                     self.protocol.display(),
                     loaded.compiled.steps,

@@ -119,6 +119,12 @@ pub fn classify(b: &Block, th: Thresholds) -> Option<SlipReport> {
     let mut steps = Vec::with_capacity(n);
     let mut slipped = false;
     let mut peak = f64::NEG_INFINITY;
+    // Relative to the block's first step, taken as stick: tracking near the contact
+    // edge is biased by the imprint's shading, so the absolute ratio is not 1.
+    let baseline = b
+        .centre_over_edge
+        .as_ref()
+        .and_then(|v| v.iter().copied().find(|r| r.is_finite() && *r > 0.0));
     for i in 0..n {
         let (x, f) = (b.load[i], b.tangential[i]);
         let pred = k0 * x;
@@ -137,12 +143,6 @@ pub fn classify(b: &Block, th: Thresholds) -> Option<SlipReport> {
         } else {
             State::Stick
         };
-        // Relative to the block's first step, taken as stick: tracking near the contact
-        // edge is biased by the imprint's shading, so the absolute ratio is not 1.
-        let baseline = b
-            .centre_over_edge
-            .as_ref()
-            .and_then(|v| v.iter().copied().find(|r| r.is_finite() && *r > 0.0));
         let central_line = b
             .centre_over_edge
             .as_ref()

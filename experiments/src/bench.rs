@@ -4,15 +4,14 @@
 
 use std::collections::BTreeSet;
 use std::path::Path;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
 
-use rig::config::{AxisDriver, AxisRole, CameraDriver, ForceDriver, RigConfig};
+use rig::config::{AxisDriver, AxisRole, CameraDriver, ForceDriver, RigConfig, TwinsConfig};
+use rig::sim::{PlantSpec, TwinPlant};
+use rig::twins::modbus::{Endpoint, ModbusTwin};
 use rig::twins::netft::{NetFtTwin, TwinParams as NetFtParams};
 use rig::twins::smc100::{Smc100Twin, TwinParams as Smc100Params};
 use rig::twins::zaber::{TwinParams as ZaberParams, ZaberTwin};
-use rig::{Clock, ClockMode, OpenRequest, Wrench, lock, open};
+use rig::{Clock, ClockMode, OpenRequest, STATUS_SATURATED, open};
 
 /// One device's probe result.
 #[derive(Debug, Clone, PartialEq)]
@@ -23,6 +22,24 @@ pub struct Probe {
     pub detail: String,
     /// Whether it answered.
     pub ok: bool,
+}
+
+impl Probe {
+    fn from_result(role: impl Into<String>, r: Result<String, String>) -> Self {
+        let role = role.into();
+        match r {
+            Ok(detail) => Self {
+                role,
+                detail,
+                ok: true,
+            },
+            Err(detail) => Self {
+                role,
+                detail,
+                ok: false,
+            },
+        }
+    }
 }
 
 fn request(axes: &[AxisRole], force: bool, camera: bool) -> OpenRequest {
@@ -72,18 +89,7 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
             },
             Err(e) => Err(e.to_string()),
         };
-        out.push(match r {
-            Ok(detail) => Probe {
-                role: role.to_string(),
-                detail,
-                ok: true,
-            },
-            Err(detail) => Probe {
-                role: role.to_string(),
-                detail,
-                ok: false,
-            },
-        });
+        out.push(Probe::from_result(role.to_string(), r));
     }
     if let Some(f) = &rig.force {
         if matches!(f.driver, ForceDriver::Sim) {
@@ -110,18 +116,7 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
                 },
                 Err(e) => Err(e.to_string()),
             };
-            out.push(match r {
-                Ok(detail) => Probe {
-                    role: "force".into(),
-                    detail,
-                    ok: true,
-                },
-                Err(detail) => Probe {
-                    role: "force".into(),
-                    detail,
-                    ok: false,
-                },
-            });
+            out.push(Probe::from_result("force", r));
         }
     }
     if let Some(c) = &rig.camera {
@@ -148,84 +143,117 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
                 },
                 Err(e) => Err(e.to_string()),
             };
-            out.push(match r {
-                Ok(detail) => Probe {
-                    role: "camera".into(),
-                    detail,
-                    ok: true,
-                },
-                Err(detail) => Probe {
-                    role: "camera".into(),
-                    detail,
-                    ok: false,
-                },
-            });
+            out.push(Probe::from_result("camera", r));
         }
     }
     out
 }
 
-/// A stage twin and how to read its position.
-enum StageTwin {
-    /// With its microstep size.
-    Zaber(ZaberTwin, f64),
-    Smc100(Smc100Twin),
+/// What `gelrig sim serve` simulates behind the twins.
+#[derive(Debug, Clone)]
+pub struct ServeOptions {
+    /// How many times faster than the wall the twins' stages move and the elastomer
+    /// relaxes; a run against them must use the same (the bound rig file says so).
+    pub time_scale: f64,
+    /// The elastomer and indenter of a protocol, and the axes it moves: with it the Net
+    /// F/T twin reads the same plant as a dry run; without it the box reads zero.
+    pub plant: Option<(PlantSpec, BTreeSet<AxisRole>)>,
+    /// Seed of the plant's noise and sensor offset.
+    pub seed: u64,
 }
 
-impl StageTwin {
-    fn position(&self) -> f64 {
-        match self {
-            StageTwin::Zaber(t, step) => t.position_microsteps() * step,
-            StageTwin::Smc100(t) => t.position_mm(),
-        }
-    }
-}
+/// A stage's position in its axis unit (mm or deg), read from its twin.
+type PositionProbe = Box<dyn Fn() -> f64 + Send>;
 
-/// Running twins of a rig's devices.
+/// Running twins of a rig's devices; dropping it stops them.
 pub struct Served {
     /// The rig file with every twin's address filled in.
     pub bound: RigConfig,
-    stages: Vec<(AxisRole, StageTwin)>,
-    netft: Option<NetFtTwin>,
+    /// What each twin is, for the operator (`normal: zaber on /dev/pts/3`).
+    pub listing: Vec<String>,
+    _zaber: Vec<ZaberTwin>,
+    _smc100: Vec<Smc100Twin>,
+    _modbus: Vec<ModbusTwin>,
+    _netft: Option<NetFtTwin>,
 }
 
-/// Starts a twin for every Zaber and SMC100 axis (each on a pseudo-terminal) and the Net
-/// F/T box (loopback UDP and TCP) of `rig`, and returns the rig with the bound addresses.
-pub fn serve(rig: &RigConfig) -> std::io::Result<Served> {
+/// Starts a twin for every wire device of `rig` (Zaber and SMC100 on pseudo-terminals,
+/// Modbus on loopback TCP or, when the map names a `port`, RTU on a pseudo-terminal; the
+/// Net F/T box on loopback UDP and TCP) and returns the rig with their addresses. Must
+/// run inside a tokio runtime, which serves Modbus TCP for as long as the twins live.
+pub async fn serve(rig: &RigConfig, options: ServeOptions) -> Result<Served, String> {
+    let scale = options.time_scale;
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(format!("time scale {scale} must be a positive number"));
+    }
     let mut bound = rig.clone();
-    let mut stages = Vec::new();
+    bound.twins = Some(TwinsConfig { time_scale: scale });
+    let mut listing = Vec::new();
+    let mut probes: Vec<(AxisRole, PositionProbe)> = Vec::new();
+    let (mut zaber, mut smc100, mut modbus) = (Vec::new(), Vec::new(), Vec::new());
+    let fail = |role: &AxisRole, e: std::io::Error| format!("{role}: starting its twin: {e}");
     for (role, cfg) in bound.axes.iter_mut() {
         let (lo, hi) = cfg.travel();
-        let twin = match cfg.driver {
+        match cfg.driver {
             AxisDriver::Zaber => {
                 let step = cfg.microstep.unwrap_or(1.0);
                 let twin = ZaberTwin::spawn(ZaberParams {
                     device: cfg.device.unwrap_or(1),
                     limits: ((lo / step).round() as i64, (hi / step).round() as i64),
                     require_checksum: cfg.checksum.unwrap_or(true),
-                })?;
+                    time_scale: scale,
+                })
+                .map_err(|e| fail(role, e))?;
                 cfg.port = Some(twin.path().to_string());
-                StageTwin::Zaber(twin, step)
+                listing.push(format!("{role}: zaber twin on {}", twin.path()));
+                let at = twin.position_probe();
+                probes.push((*role, Box::new(move || at() * step)));
+                zaber.push(twin);
             }
             AxisDriver::Smc100 => {
                 let twin = Smc100Twin::spawn(Smc100Params {
                     address: cfg.device.unwrap_or(1),
                     limits: (lo, hi),
                     home_speed: 5.0,
-                })?;
+                    time_scale: scale,
+                })
+                .map_err(|e| fail(role, e))?;
                 cfg.port = Some(twin.path().to_string());
-                StageTwin::Smc100(twin)
+                listing.push(format!("{role}: smc100 twin on {}", twin.path()));
+                probes.push((*role, Box::new(twin.position_probe())));
+                smc100.push(twin);
             }
-            _ => continue,
-        };
-        stages.push((*role, twin));
+            AxisDriver::Modbus => {
+                let Some(map) = cfg.modbus.as_mut() else {
+                    return Err(format!("{role}: a modbus axis needs its `modbus:` map"));
+                };
+                let per = map.steps_per_unit;
+                let limits = ((lo * per).round() as i32, (hi * per).round() as i32);
+                let (twin, kind) = if map.port.is_some() {
+                    let t = ModbusTwin::spawn_rtu(map.clone(), limits, scale);
+                    (t.map_err(|e| fail(role, e))?, "rtu")
+                } else {
+                    let t = ModbusTwin::spawn(map.clone(), limits, scale).await;
+                    (t.map_err(|e| fail(role, e))?, "tcp")
+                };
+                match &twin.endpoint {
+                    Endpoint::Tcp(a) => map.address = Some(a.to_string()),
+                    Endpoint::Rtu(p) => map.port = Some(p.clone()),
+                }
+                listing.push(format!("{role}: modbus {kind} twin at {}", twin.address()));
+                let at = twin.position_probe();
+                probes.push((*role, Box::new(move || at() / per)));
+                modbus.push(twin);
+            }
+            AxisDriver::Sim | AxisDriver::Manual => {}
+        }
     }
     let mut netft = None;
     if let Some(f) = bound.force.as_mut()
         && matches!(f.driver, ForceDriver::NetFt)
     {
         let twin = NetFtTwin::spawn(NetFtParams {
-            rate_hz: 1000.0,
+            rate_hz: netft_rate_hz(scale),
             cal: rig::drivers::netft_rdt::CalInfo {
                 force_unit: 2,
                 torque_unit: 4,
@@ -234,47 +262,55 @@ pub fn serve(rig: &RigConfig) -> std::io::Result<Served> {
             },
             range: f.model.range(),
             first_seq: (1, 0),
-        })?;
+        })
+        .map_err(|e| format!("force: starting the net f/t twin: {e}"))?;
         f.address = Some(twin.rdt_addr().to_string());
         f.calibration_port = Some(twin.calibration_addr().port());
+        listing.push(format!(
+            "force: net f/t twin at {} (calibration port {})",
+            twin.rdt_addr(),
+            twin.calibration_addr().port()
+        ));
+        if let Some((spec, axes)) = options.plant {
+            let mut plant = TwinPlant::new(rig, spec, &axes, options.seed)
+                .map_err(|e| format!("the simulated elastomer: {e}"))?;
+            // Only the stages the protocol moves touch the elastomer.
+            probes.retain(|(role, _)| axes.contains(role));
+            let origin = std::time::Instant::now();
+            let mut at = Vec::with_capacity(probes.len());
+            twin.drive_with(Box::new(move || {
+                // Plant time runs `scale` times faster than the wall, like the stages.
+                let t_ns = (origin.elapsed().as_nanos() as f64 * scale) as u64;
+                at.clear();
+                at.extend(probes.iter().map(|(role, p)| (*role, p())));
+                let (w, status) = plant.sense(&at, t_ns);
+                (w, status & STATUS_SATURATED != 0)
+            }));
+        }
         netft = Some(twin);
     }
     Ok(Served {
         bound,
-        stages,
-        netft,
+        listing,
+        _zaber: zaber,
+        _smc100: smc100,
+        _modbus: modbus,
+        _netft: netft,
     })
 }
 
-impl Served {
-    /// Couples the twins until `stop`: the normal stage pressing past the rig's
-    /// `sim.normal_contact` loads the Net F/T box as a linear spring of `stiffness_n_per_mm`
-    /// (a stand-in for the in-process elastomer, which these twins do not yet drive).
-    pub fn couple(&self, stiffness_n_per_mm: f64, contact_mm: f64, stop: &Arc<AtomicBool>) {
-        while !stop.load(Ordering::Relaxed) {
-            if let Some(box_) = &self.netft {
-                let depth = self
-                    .stages
-                    .iter()
-                    .find(|(r, _)| *r == AxisRole::Normal)
-                    .map(|(_, t)| t.position() - contact_mm)
-                    .unwrap_or(0.0);
-                *lock(&box_.load) = Wrench {
-                    fz_n: stiffness_n_per_mm * depth.max(0.0),
-                    ..Default::default()
-                };
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
-    }
+/// Records per wall second of the Net F/T twin: 40 per simulated second (twice the
+/// protocols' usual 20 Hz force stream) so a scaled run still fills its force windows,
+/// within what the real box streams (1–7 kHz, devices spec §2.1).
+pub fn netft_rate_hz(time_scale: f64) -> f64 {
+    (40.0 * time_scale).clamp(1000.0, 7000.0)
 }
 
-/// Writes the bound rig file.
+/// Writes the bound rig file (atomically: a run started meanwhile never reads half of it).
 pub fn write_bound(served: &Served, path: &Path) -> std::io::Result<()> {
     let text = serde_yaml::to_string(&served.bound).map_err(std::io::Error::other)?;
     let header =
         "# Written by `gelrig sim serve`: the rig file with the twins' addresses filled in.\n";
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, format!("{header}{text}"))?;
-    std::fs::rename(tmp, path)
+    crate::record::write_atomic(path, format!("{header}{text}").as_bytes())
+        .map_err(std::io::Error::other)
 }

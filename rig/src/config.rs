@@ -89,6 +89,19 @@ pub struct RigConfig {
     /// Geometry of the simulated bench; required when any device is simulated.
     #[serde(default)]
     pub sim: Option<SimConfig>,
+    /// Written by `gelrig sim serve` into the rig file it binds: every device is a twin.
+    /// Never write it for a real bench.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub twins: Option<TwinsConfig>,
+}
+
+/// The devices are `gelrig sim serve` twins.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TwinsConfig {
+    /// How many times faster than the wall the twins' stages and elastomer run; the run's
+    /// clock runs at the same speed, so settles and sample times stay in plant time.
+    pub time_scale: f64,
 }
 
 /// One stage axis.
@@ -506,6 +519,15 @@ impl RigConfig {
                 path: YamlPath::root().key("camera").key("driver"),
                 message: "an image_folder camera needs the folder of frames".into(),
                 fix: "add `path: ../shared/data/gelsight-mini-press`".into(),
+            });
+        }
+        if let Some(t) = &self.twins
+            && !(t.time_scale.is_finite() && t.time_scale > 0.0)
+        {
+            issues.push(ConfigIssue {
+                path: YamlPath::root().key("twins").key("time_scale"),
+                message: format!("time_scale {} is not a positive number", t.time_scale),
+                fix: "let `gelrig sim serve --time-scale K` write this section".into(),
             });
         }
         if self.uses_sim() && self.sim.is_none() {

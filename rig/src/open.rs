@@ -11,7 +11,7 @@ use serde::Serialize;
 use crate::config::{AxisDriver, AxisRole, CameraDriver, DisturberDriver, ForceDriver, RigConfig};
 use crate::device::{Axis, AxisInfo, Camera, CameraInfo, Disturber, ForceInfo, ForceSensor};
 use crate::sim::plant::{BenchGeometry, Plant, PlantNeeds};
-use crate::sim::{PlantSpec, SimAxis, SimCamera, SimDisturber, SimForceSensor};
+use crate::sim::{FollowedAxis, PlantSpec, SimAxis, SimCamera, SimDisturber, SimForceSensor};
 use crate::{Clock, RigError};
 
 /// Which devices to open.
@@ -80,22 +80,7 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
             device: what.to_string(),
             detail: "a simulated device needs the sensor and indenter description".into(),
         })?;
-        let sim = config.sim.as_ref().ok_or_else(|| RigError::Unsupported {
-            device: what.to_string(),
-            detail: format!(
-                "rig `{}` has simulated devices but no `sim:` section",
-                config.name
-            ),
-        })?;
-        let geometry = BenchGeometry {
-            normal_contact_mm: sim.normal_contact.mm(),
-            grip_contact_mm: sim
-                .grip_contact
-                .map(|l| l.mm())
-                .unwrap_or(sim.normal_contact.mm()),
-            force_bias_n: sim.force_bias.map(|f| f.n()).unwrap_or(0.0),
-            noise: sim.noise.unwrap_or(true),
-        };
+        let geometry = BenchGeometry::of(config, what)?;
         // Build only what the opened devices will ask for.
         let needs = PlantNeeds {
             shear: req.axes.contains(&AxisRole::Shear),
@@ -294,6 +279,27 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
             identity: "simulated disturbance on the grasped object".into(),
         });
         rig.disturber = Some(d);
+    }
+    // Real stages on a rig with simulated devices (the wire twins' rig with its rendered
+    // camera): the simulated elastomer follows where the drivers say the stages are.
+    if let Some(p) = plant {
+        let real: Vec<AxisRole> = rig
+            .axes
+            .keys()
+            .filter(|r| {
+                config
+                    .axes
+                    .get(r)
+                    .is_some_and(|a| !matches!(a.driver, AxisDriver::Sim))
+            })
+            .copied()
+            .collect();
+        for role in real {
+            if let Some(inner) = rig.axes.remove(&role) {
+                let followed = FollowedAxis::new(role, inner, p.clone(), req.clock.clone());
+                rig.axes.insert(role, Box::new(followed));
+            }
+        }
     }
     Ok(rig)
 }

@@ -1,6 +1,7 @@
-//! The Modbus driver against its twin over loopback Modbus TCP: the register map in both,
-//! moves, homing, the drive's own limits (alarm, exception 0x03), busy exceptions, and a
-//! wrong unit id (no reply: a bounded timeout).
+//! The Modbus driver against its twin over loopback Modbus TCP and over RTU on a
+//! pseudo-terminal: the register map in both, moves, homing, the drive's own limits (alarm,
+//! exception 0x03), busy exceptions, a wrong unit id (no reply: a bounded timeout), and
+//! (RTU) replies with a bad CRC.
 
 use std::time::Duration;
 
@@ -16,7 +17,10 @@ use common::wait_idle;
 fn map(address: String, slave: u8) -> ModbusMap {
     // An Oriental AZ-like map (spec devices.md §2d), upper word first.
     ModbusMap {
-        address,
+        address: Some(address),
+        port: None,
+        baud: None,
+        parity: None,
         slave,
         word_order: WordOrder::HighFirst,
         steps_per_unit: 500.0,
@@ -55,15 +59,35 @@ fn info(max: f64) -> AxisInfo {
     }
 }
 
+/// The same map on an RTU line: `port` instead of `address`.
+fn rtu_map(port: String, slave: u8) -> ModbusMap {
+    ModbusMap {
+        address: None,
+        port: Some(port),
+        baud: Some(19200),
+        ..map(String::new(), slave)
+    }
+}
+
 #[tokio::test]
 async fn moves_homes_and_keeps_the_two_error_layers_apart() {
-    let twin = ModbusTwin::spawn(map(String::new(), 1), (0, 6000))
+    let twin = ModbusTwin::spawn(map(String::new(), 1), (0, 6000), 1.0)
         .await
         .expect("twin");
+    exercise(&twin, map(twin.address(), 1)).await;
+}
+
+#[tokio::test]
+async fn the_same_over_rtu_on_a_pseudo_terminal() {
+    let twin = ModbusTwin::spawn_rtu(map(String::new(), 1), (0, 6000), 1.0).expect("twin");
+    assert!(twin.address().starts_with("/dev/pts/"));
+    exercise(&twin, rtu_map(twin.address(), 1)).await;
+}
+
+/// Moves, homing, limits, busy and silence against `twin` through `m`.
+async fn exercise(twin: &ModbusTwin, m: ModbusMap) {
     // The rig file allows 20 mm; the drive only 12 mm (6000 steps).
-    let mut a = ModbusAxis::open(map(twin.address.to_string(), 1), info(20.0))
-        .await
-        .expect("opens");
+    let mut a = ModbusAxis::open(m, info(20.0)).await.expect("opens");
     let s = a.status().await.expect("status");
     assert!(
         !s.referenced && (s.position - 1234.0 / 500.0).abs() < 1e-9,
@@ -99,19 +123,52 @@ async fn moves_homes_and_keeps_the_two_error_layers_apart() {
     let t0 = std::time::Instant::now();
     assert!(matches!(a.status().await, Err(RigError::Timeout { .. })));
     assert!(t0.elapsed() < Duration::from_secs(2));
+    lock(&twin.faults).silent = false;
+    a.status().await.expect("answers again after the silence");
 }
 
 #[tokio::test]
-async fn a_wrong_unit_id_or_a_bad_map_is_refused() {
-    let twin = ModbusTwin::spawn(map(String::new(), 1), (0, 6000))
+async fn rtu_replies_with_a_bad_crc_are_errors_and_the_line_recovers() {
+    let twin = ModbusTwin::spawn_rtu(map(String::new(), 1), (0, 6000), 1.0).expect("twin");
+    let mut a = ModbusAxis::open(rtu_map(twin.address(), 1), info(12.0))
         .await
-        .expect("twin");
-    let e = ModbusAxis::open(map(twin.address.to_string(), 9), info(12.0))
+        .expect("opens");
+    lock(&twin.faults).garble_next = 1;
+    let t0 = std::time::Instant::now();
+    let e = a.status().await.expect_err("garbled reply");
+    assert!(
+        matches!(e, RigError::Io { .. } | RigError::Timeout { .. }),
+        "{e}"
+    );
+    assert!(t0.elapsed() < Duration::from_secs(2));
+    let s = a.status().await.expect("the next request is answered");
+    assert!((s.position - 1234.0 / 500.0).abs() < 1e-9, "{s:?}");
+    // A wrong unit id on the line: silence, a bounded timeout.
+    drop(a);
+    let e = ModbusAxis::open(rtu_map(twin.address(), 7), info(12.0))
         .await
         .err()
         .expect("no reply");
     assert!(matches!(e, RigError::Timeout { .. }), "{e}");
-    let mut bad = map(twin.address.to_string(), 1);
+    // A port that does not exist names the fix.
+    let e = ModbusAxis::open(rtu_map("/dev/ttyNOPE9".into(), 1), info(12.0))
+        .await
+        .err()
+        .expect("no such port");
+    assert!(e.to_string().contains("port:"), "{e}");
+}
+
+#[tokio::test]
+async fn a_wrong_unit_id_or_a_bad_map_is_refused() {
+    let twin = ModbusTwin::spawn(map(String::new(), 1), (0, 6000), 1.0)
+        .await
+        .expect("twin");
+    let e = ModbusAxis::open(map(twin.address(), 9), info(12.0))
+        .await
+        .err()
+        .expect("no reply");
+    assert!(matches!(e, RigError::Timeout { .. }), "{e}");
+    let mut bad = map(twin.address(), 1);
     bad.position = 0x005D; // overlaps the target
     let e = ModbusAxis::open(bad, info(12.0))
         .await

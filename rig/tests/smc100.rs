@@ -18,6 +18,7 @@ fn twin() -> Smc100Twin {
         address: 1,
         limits: (0.0, 12.0),
         home_speed: 20.0,
+        time_scale: 1.0,
     })
     .expect("a pty")
 }

@@ -21,6 +21,7 @@ fn twin(require_checksum: bool) -> ZaberTwin {
         device: 1,
         limits: (0, (25.0 / MICROSTEP_MM) as i64),
         require_checksum,
+        time_scale: 1.0,
     })
     .expect("a pty")
 }

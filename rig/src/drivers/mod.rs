@@ -8,6 +8,7 @@ pub mod manual;
 pub mod modbus;
 pub mod netft;
 pub mod netft_rdt;
+mod serial_async;
 mod serial_line;
 pub mod smc100;
 #[cfg(feature = "v4l")]

@@ -1,5 +1,6 @@
-//! A Modbus stage (e.g. an Oriental AZ drive, spec `devices.md` §2d) over Modbus TCP
-//! through `tokio-modbus`, with its register map in the rig file and validated at load.
+//! A Modbus stage (e.g. an Oriental AZ drive, spec `devices.md` §2d) over Modbus TCP or
+//! RTU (RS-485 serial) through `tokio-modbus`, with its register map in the rig file and
+//! validated at load.
 //!
 //! A move writes the target and speed (32-bit, two registers each, in the map's word
 //! order) and then the trigger; the status register's bits say busy, alarm and homed.
@@ -13,9 +14,12 @@ use std::time::Duration;
 use async_trait::async_trait;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
+use tokio_modbus::Slave;
 use tokio_modbus::client::{Context, Reader, Writer};
-use tokio_modbus::{Slave, client::tcp};
+use tokio_modbus::client::{rtu, tcp};
 
+pub use super::serial_async::Parity;
+use super::serial_async::{AsyncSerial, baud_rate};
 use crate::RigError;
 use crate::device::{Axis, AxisInfo, AxisStatus};
 
@@ -64,8 +68,18 @@ pub struct RegWrite {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ModbusMap {
-    /// Modbus TCP address of the drive (`host:502`).
-    pub address: String,
+    /// Modbus TCP address of the drive (`host:502`); or give `port` for RTU.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub address: Option<String>,
+    /// Serial device of a Modbus RTU drive (`/dev/ttyUSB0`; a twin's `/dev/pts/N`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub port: Option<String>,
+    /// RTU baud rate (default 19200, the Modbus serial line default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baud: Option<u32>,
+    /// RTU parity (default even; `none` uses two stop bits).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parity: Option<Parity>,
     /// Slave (unit) id.
     pub slave: u8,
     /// Word order of 32-bit values.
@@ -130,10 +144,39 @@ impl ModbusMap {
                 used.push((a, name));
             }
         }
-        if self.address.parse::<SocketAddr>().is_err() {
-            p.push(("address", format!("`{}` is not host:port", self.address)));
+        match (&self.address, &self.port) {
+            (Some(a), None) if a.parse::<SocketAddr>().is_err() => {
+                p.push(("address", format!("`{a}` is not host:port")));
+            }
+            (Some(_), Some(_)) => p.push((
+                "port",
+                "give `address` (Modbus TCP) or `port` (RTU), not both".to_string(),
+            )),
+            (None, None) => p.push((
+                "address",
+                "missing: give `address: host:502` (Modbus TCP) or `port: /dev/ttyUSB0` (RTU)"
+                    .to_string(),
+            )),
+            _ => {}
+        }
+        if let Some(b) = self.baud
+            && baud_rate(b).is_none()
+        {
+            p.push((
+                "baud",
+                format!("{b} is not a standard rate (9600, 19200, 115200, …)"),
+            ));
         }
         p
+    }
+
+    /// Where the drive is, for messages.
+    pub fn endpoint(&self) -> String {
+        match (&self.address, &self.port) {
+            (Some(a), _) => a.clone(),
+            (None, Some(p)) => format!("{p} (RTU)"),
+            (None, None) => "(no address)".into(),
+        }
     }
 
     fn timeout(&self) -> Duration {
@@ -151,27 +194,53 @@ pub struct ModbusAxis {
 impl ModbusAxis {
     /// Connects to the drive and reads its status once.
     pub async fn open(map: ModbusMap, mut info: AxisInfo) -> Result<Self, RigError> {
-        let device = format!("Modbus drive {} unit {}", map.address, map.slave);
+        let device = format!("Modbus drive {} unit {}", map.endpoint(), map.slave);
         if let Some((field, msg)) = map.problems().into_iter().next() {
             return Err(RigError::Unsupported {
                 device,
                 detail: format!("register map `{field}`: {msg}"),
             });
         }
-        let addr: SocketAddr = map.address.parse().map_err(|_| RigError::Unsupported {
+        let timeout_ms = map.timeout().as_millis() as u64;
+        let io = |source| RigError::Io {
             device: device.clone(),
-            detail: "bad address".into(),
-        })?;
-        let ctx = tokio::time::timeout(map.timeout(), tcp::connect_slave(addr, Slave(map.slave)))
-            .await
-            .map_err(|_| RigError::Timeout {
-                device: device.clone(),
-                timeout_ms: map.timeout().as_millis() as u64,
-            })?
-            .map_err(|source| RigError::Io {
-                device: device.clone(),
-                source,
-            })?;
+            source,
+        };
+        let ctx = match (&map.address, &map.port) {
+            (Some(address), _) => {
+                let addr: SocketAddr = address.parse().map_err(|_| RigError::Unsupported {
+                    device: device.clone(),
+                    detail: "bad address".into(),
+                })?;
+                tokio::time::timeout(map.timeout(), tcp::connect_slave(addr, Slave(map.slave)))
+                    .await
+                    .map_err(|_| RigError::Timeout {
+                        device: device.clone(),
+                        timeout_ms,
+                    })?
+                    .map_err(io)?
+            }
+            (None, Some(port)) => {
+                let serial = AsyncSerial::open(
+                    port,
+                    map.baud.unwrap_or(19200),
+                    map.parity.unwrap_or_default(),
+                )
+                .map_err(|e| {
+                    io(std::io::Error::new(
+                        e.kind(),
+                        format!("{e}; fix: check the `port:` path in the register map"),
+                    ))
+                })?;
+                rtu::attach_slave(serial, Slave(map.slave))
+            }
+            (None, None) => {
+                return Err(RigError::Unsupported {
+                    device,
+                    detail: "the register map has neither `address` nor `port`".into(),
+                });
+            }
+        };
         info.identity = device;
         let mut a = Self { info, map, ctx };
         a.status().await?;
@@ -299,7 +368,10 @@ mod tests {
         }
         assert_eq!(WordOrder::HighFirst.split(0x0001_0002), [1, 2]);
         let mut m = ModbusMap {
-            address: "127.0.0.1:502".into(),
+            address: Some("127.0.0.1:502".into()),
+            port: None,
+            baud: None,
+            parity: None,
             slave: 1,
             word_order: WordOrder::HighFirst,
             steps_per_unit: 500.0,
@@ -327,10 +399,13 @@ mod tests {
         assert!(m.problems().is_empty(), "{:?}", m.problems());
         m.speed = 0x5D;
         m.busy_bit = 16;
+        m.port = Some("/dev/ttyUSB0".into());
+        m.baud = Some(12345);
         let p = m.problems();
-        assert!(
-            p.iter().any(|(f, _)| *f == "speed") && p.iter().any(|(f, _)| *f == "busy_bit"),
-            "{p:?}"
-        );
+        for field in ["speed", "busy_bit", "port", "baud"] {
+            assert!(p.iter().any(|(f, _)| *f == field), "{field}: {p:?}");
+        }
+        m.address = None;
+        assert!(!m.problems().iter().any(|(f, _)| *f == "port"));
     }
 }

@@ -13,13 +13,17 @@
 
 mod axis;
 mod camera;
+mod follow;
 mod force;
 pub(crate) mod plant;
 pub mod render;
+mod twin_plant;
 
 pub(crate) use axis::SimAxis;
 pub(crate) use camera::SimCamera;
+pub(crate) use follow::FollowedAxis;
 pub(crate) use force::{SimDisturber, SimForceSensor};
 pub use mechanics::response::Quality;
 pub use plant::{MarkerLayout, PlantSpec};
 pub use render::{Renderer, SurfaceView, marker_reference_positions_mm};
+pub use twin_plant::TwinPlant;

@@ -84,6 +84,28 @@ pub(crate) struct BenchGeometry {
     pub noise: bool,
 }
 
+impl BenchGeometry {
+    /// The rig file's `sim:` section, which a simulated `what` cannot do without.
+    pub(crate) fn of(config: &crate::config::RigConfig, what: &str) -> Result<Self, RigError> {
+        let sim = config.sim.as_ref().ok_or_else(|| RigError::Unsupported {
+            device: what.to_string(),
+            detail: format!(
+                "rig `{}` has simulated devices but no `sim:` section",
+                config.name
+            ),
+        })?;
+        Ok(Self {
+            normal_contact_mm: sim.normal_contact.mm(),
+            grip_contact_mm: sim
+                .grip_contact
+                .map(|l| l.mm())
+                .unwrap_or(sim.normal_contact.mm()),
+            force_bias_n: sim.force_bias.map(|f| f.n()).unwrap_or(0.0),
+            noise: sim.noise.unwrap_or(true),
+        })
+    }
+}
+
 /// What the opened devices need from the plant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub(crate) struct PlantNeeds {
@@ -128,6 +150,9 @@ pub(crate) struct AxisState {
     motion: Motion,
     pub referenced: bool,
     homing: bool,
+    /// Driven from outside ([`Plant::follow`]) and moved during the last interval: the
+    /// stage is still travelling at the interval's end, so friction must not re-stick.
+    followed_moving: bool,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -242,6 +267,7 @@ impl Plant {
                 motion: Motion::at_rest(start, self.t_ns),
                 referenced: false,
                 homing: false,
+                followed_moving: false,
             },
         );
     }
@@ -255,7 +281,39 @@ impl Plant {
     }
 
     fn moving(&self, role: AxisRole, t_ns: u64) -> bool {
-        self.axes.get(&role).is_some_and(|a| t_ns < a.motion.t1_ns)
+        self.axes
+            .get(&role)
+            .is_some_and(|a| t_ns < a.motion.t1_ns || a.followed_moving)
+    }
+
+    /// Moves the stages to where something outside says they are at `t_ns` (the wire
+    /// twins of `gelrig sim serve`), linearly from where they were at the plant's last
+    /// time, and integrates up to `t_ns`. An axis seen for the first time starts there.
+    pub(crate) fn follow(&mut self, positions: &[(AxisRole, f64)], t_ns: u64) {
+        let t0 = self.t_ns;
+        let t1 = t_ns.max(t0);
+        for &(role, p) in positions {
+            let a = self.axes.entry(role).or_insert(AxisState {
+                motion: Motion::at_rest(p, t0),
+                referenced: true,
+                homing: false,
+                followed_moving: false,
+            });
+            let from = a.motion.position(t0);
+            // A stage at rest is integrated in one exact step, a moving one in short ones.
+            a.followed_moving = from != p;
+            a.motion = if a.followed_moving {
+                Motion {
+                    from,
+                    to: p,
+                    t0_ns: t0,
+                    t1_ns: t1,
+                }
+            } else {
+                Motion::at_rest(p, t0)
+            };
+        }
+        self.advance_to(t1);
     }
 
     /// Position and motion state of an axis at `t_ns` (advancing the plant first).

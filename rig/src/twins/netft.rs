@@ -50,12 +50,38 @@ pub struct TwinParams {
     pub first_seq: (u32, u32),
 }
 
+/// What the box reads at each record, if not the fixed [`NetFtTwin::load`]: the wrench and
+/// whether the transducer saturated (a simulated plant clips at the range itself).
+pub type LoadSource = Box<dyn FnMut() -> (Wrench, bool) + Send>;
+
+/// The box's load: fixed, or read from a plant at every record.
+struct Loads {
+    fixed: Arc<Mutex<Wrench>>,
+    source: Arc<Mutex<Option<LoadSource>>>,
+}
+
+impl Loads {
+    fn now(&self, range: &ForceRange) -> (Wrench, bool) {
+        if let Some(f) = lock(&self.source).as_mut() {
+            return f();
+        }
+        let w = *lock(&self.fixed);
+        let out = |v: f64, range: f64| v.abs() > range;
+        let saturated = out(w.fz_n, range.fz_n)
+            || out(w.fx_n, range.fxy_n)
+            || out(w.fy_n, range.fxy_n)
+            || out(w.tz_nmm, range.torque_nmm);
+        (w, saturated)
+    }
+}
+
 /// A running box.
 pub struct NetFtTwin {
     rdt: SocketAddr,
     calibration: SocketAddr,
-    /// The load the box reads.
+    /// The load the box reads (unless a [`LoadSource`] drives it).
     pub load: Arc<Mutex<Wrench>>,
+    source: Arc<Mutex<Option<LoadSource>>>,
     faults: Arc<Mutex<Faults>>,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
@@ -65,14 +91,21 @@ impl NetFtTwin {
     /// Binds UDP and TCP on 127.0.0.1 (ephemeral ports) and starts serving.
     pub fn spawn(params: TwinParams) -> std::io::Result<Self> {
         let udp = UdpSocket::bind("127.0.0.1:0")?;
-        udp.set_read_timeout(Some(Duration::from_millis(1)))?;
+        // Wake at least once per record period (and at most every 1 ms) to send on time.
+        let period_s = 1.0 / params.rate_hz.max(1.0);
+        udp.set_read_timeout(Some(Duration::from_secs_f64(period_s.clamp(1e-4, 1e-3))))?;
         let tcp = TcpListener::bind("127.0.0.1:0")?;
         tcp.set_nonblocking(true)?;
         let (rdt, calibration) = (udp.local_addr()?, tcp.local_addr()?);
         let load = Arc::new(Mutex::new(Wrench::default()));
+        let source = Arc::new(Mutex::new(None));
         let faults = Arc::new(Mutex::new(Faults::default()));
         let stop = Arc::new(AtomicBool::new(false));
-        let (l, f, s, p) = (load.clone(), faults.clone(), stop.clone(), params.clone());
+        let l = Loads {
+            fixed: load.clone(),
+            source: Arc::clone(&source),
+        };
+        let (f, s, p) = (faults.clone(), stop.clone(), params.clone());
         let stream = std::thread::spawn(move || serve_rdt(&udp, &p, &l, &f, &s));
         let (s2, cal) = (stop.clone(), params.cal);
         let calib = std::thread::spawn(move || serve_cal(&tcp, cal, &s2));
@@ -80,10 +113,17 @@ impl NetFtTwin {
             rdt,
             calibration,
             load,
+            source,
             faults,
             stop,
             threads: vec![stream, calib],
         })
+    }
+
+    /// Reads every record's load from `source` from now on (a simulated plant following
+    /// the stage twins) instead of the fixed [`Self::load`].
+    pub fn drive_with(&self, source: LoadSource) {
+        *lock(&self.source) = Some(source);
     }
 
     /// The RDT address.
@@ -130,7 +170,7 @@ fn serve_cal(tcp: &TcpListener, cal: CalInfo, stop: &AtomicBool) {
 fn serve_rdt(
     udp: &UdpSocket,
     p: &TwinParams,
-    load: &Mutex<Wrench>,
+    load: &Loads,
     faults: &Mutex<Faults>,
     stop: &AtomicBool,
 ) {
@@ -154,7 +194,7 @@ fn serve_rdt(
                         remaining = (count > 0).then_some(count);
                     }
                     CMD_STOP => client = None,
-                    CMD_BIAS => bias = *lock(load),
+                    CMD_BIAS => bias = load.now(&p.range).0,
                     _ => {}
                 }
             }
@@ -195,7 +235,7 @@ fn serve_rdt(
 fn send_one(
     udp: &UdpSocket,
     p: &TwinParams,
-    load: &Mutex<Wrench>,
+    load: &Loads,
     faults: &Mutex<Faults>,
     client: &mut Option<SocketAddr>,
     remaining: &mut Option<u32>,
@@ -212,13 +252,7 @@ fn send_one(
         if f.silent {
             return;
         }
-        let w = *lock(load);
-        let out = |v: f64, range: f64| v.abs() > range;
-        let r = &p.range;
-        let saturated = out(w.fz_n, r.fz_n)
-            || out(w.fx_n, r.fxy_n)
-            || out(w.fy_n, r.fxy_n)
-            || out(w.tz_nmm, r.torque_nmm);
+        let (w, saturated) = load.now(&p.range);
         let net = w.minus(bias).as_array();
         let counts: [i32; 6] = std::array::from_fn(|k| {
             let per = if k < 3 { n_per_count } else { nmm_per_count };

@@ -44,15 +44,7 @@ impl PtyTwin {
         mut handler: impl FnMut(&str) -> Option<String> + Send + 'static,
         garble: fn(&str) -> String,
     ) -> std::io::Result<Self> {
-        let (mut master, slave) = {
-            // `TTYPort::pair` is not thread-safe (serialport's own tests serialise it).
-            let _g = lock(&PAIR);
-            TTYPort::pair().map_err(std::io::Error::other)?
-        };
-        let path = slave
-            .name()
-            .ok_or_else(|| std::io::Error::other("pty without a name"))?;
-        drop(slave);
+        let (mut master, path) = open_pair()?;
         master
             .set_timeout(Duration::from_millis(10))
             .map_err(std::io::Error::other)?;
@@ -85,6 +77,21 @@ impl PtyTwin {
     pub fn transcript(&self) -> Vec<String> {
         lock(&self.transcript).clone()
     }
+}
+
+/// A new pseudo-terminal: the master side a twin serves, and the slave's path that the
+/// driver opens.
+pub(crate) fn open_pair() -> std::io::Result<(TTYPort, String)> {
+    let (master, slave) = {
+        // `TTYPort::pair` is not thread-safe (serialport's own tests serialise it).
+        let _g = lock(&PAIR);
+        TTYPort::pair().map_err(std::io::Error::other)?
+    };
+    let path = slave
+        .name()
+        .ok_or_else(|| std::io::Error::other("pty without a name"))?;
+    drop(slave);
+    Ok((master, path))
 }
 
 impl Drop for PtyTwin {

@@ -22,6 +22,8 @@ pub struct TwinParams {
     pub limits: (f64, f64),
     /// Homing speed, mm/s.
     pub home_speed: f64,
+    /// How many times faster than the wall the stage moves (1 for tests of the driver).
+    pub time_scale: f64,
 }
 
 struct State {
@@ -88,6 +90,12 @@ impl Smc100Twin {
     pub fn position_mm(&self) -> f64 {
         lock(&self.state).at(Instant::now()).0
     }
+
+    /// A handle reading the position in mm, for a plant that follows the stage.
+    pub fn position_probe(&self) -> impl Fn() -> f64 + Send + 'static {
+        let st = self.state.clone();
+        move || lock(&st).at(Instant::now()).0
+    }
 }
 
 fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
@@ -97,7 +105,10 @@ fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
         return None;
     }
     let rest = &line[digits..];
-    let (cmd, value) = rest.split_at(rest.len().min(2));
+    // Two-letter command, then the value; split on a character boundary (garbage may be
+    // any bytes).
+    let cut = rest.char_indices().nth(2).map_or(rest.len(), |(i, _)| i);
+    let (cmd, value) = rest.split_at(cut);
     let now = Instant::now();
     let (pos, moving) = st.at(now);
     if !moving && st.homing {
@@ -126,7 +137,7 @@ fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
                 from: pos,
                 to,
                 start: now,
-                speed: st.velocity,
+                speed: st.velocity * p.time_scale,
                 ..*st
             };
         }
@@ -158,7 +169,7 @@ fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
                     from: pos,
                     to: 0.0,
                     start: now,
-                    speed: p.home_speed,
+                    speed: p.home_speed * p.time_scale,
                     homing: true,
                     ..*st
                 };

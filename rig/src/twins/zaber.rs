@@ -26,6 +26,9 @@ pub struct TwinParams {
     pub limits: (i64, i64),
     /// Whether the device requires checksums on commands.
     pub require_checksum: bool,
+    /// How many times faster than the wall the stage moves (1 for tests of the driver;
+    /// `gelrig sim serve --time-scale` to run a long protocol quickly).
+    pub time_scale: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -92,6 +95,12 @@ impl ZaberTwin {
         lock(&self.state).motion.at(Instant::now()).0
     }
 
+    /// A handle reading the position in microsteps, for a plant that follows the stage.
+    pub fn position_probe(&self) -> impl Fn() -> f64 + Send + 'static {
+        let st = self.state.clone();
+        move || lock(&st).motion.at(Instant::now()).0
+    }
+
     /// The fault switches.
     pub fn faults(&self) -> &Arc<Mutex<Faults>> {
         self.pty.faults()
@@ -152,7 +161,7 @@ fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
                 from: pos,
                 to: 0.0,
                 start: now,
-                speed: 200_000.0,
+                speed: 200_000.0 * p.time_scale,
             };
             st.homed = true;
             ok("0", true, "--")
@@ -178,8 +187,8 @@ fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
                 return rj("BADDATA");
             };
             let speed = match speed {
-                None => 100_000.0,
-                Some(Ok(s)) if s > 0.0 => s / 1.6384,
+                None => 100_000.0 * p.time_scale,
+                Some(Ok(s)) if s > 0.0 => s / 1.6384 * p.time_scale,
                 Some(_) => return rj("BADDATA"),
             };
             if t < p.limits.0 || t > p.limits.1 {

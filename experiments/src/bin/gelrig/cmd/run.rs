@@ -25,8 +25,9 @@ pub(crate) struct Cmd {
     seed: u64,
     /// Clock of a simulated rig: `virtual` (as fast as possible) or a speed-up over real
     /// time, e.g. `60` (an hour in a minute) or `1` (real time).
-    #[arg(long, default_value = "virtual")]
-    time_scale: String,
+    /// [default: `virtual`; the `twins:` scale of a `gelrig sim serve` rig]
+    #[arg(long)]
+    time_scale: Option<String>,
     /// Plain progress lines even on a terminal.
     #[arg(long, conflicts_with = "quiet")]
     plain: bool,
@@ -41,24 +42,26 @@ impl Cmd {
             Ok(l) => l,
             Err(code) => return Ok(code),
         };
-        let clock = if loaded.rig.uses_sim() {
-            match self.time_scale.as_str() {
-                "virtual" => ClockMode::Virtual,
-                s => {
-                    let scale: f64 = s
-                        .parse()
-                        .ok()
-                        .filter(|v: &f64| *v > 0.0 && v.is_finite())
-                        .with_context(|| {
-                            format!(
-                                "--time-scale `{s}`: write `virtual` or a positive number, e.g. 60"
-                            )
-                        })?;
-                    ClockMode::Scaled { scale }
-                }
-            }
-        } else {
-            ClockMode::Monotonic
+        let clock = match (&loaded.rig.twins, self.time_scale.as_deref()) {
+            // The twins of `gelrig sim serve` keep their own time: the run must match it.
+            (Some(t), None) => ClockMode::Scaled {
+                scale: t.time_scale,
+            },
+            (Some(t), Some(s)) => match parse_scale(s)? {
+                ClockMode::Scaled { scale } if scale == t.time_scale => ClockMode::Scaled { scale },
+                _ => anyhow::bail!(
+                    "--time-scale {s}: the rig's twins run at {}× (`twins:` in {}); \
+                     drop --time-scale or restart `gelrig sim serve` with it",
+                    t.time_scale,
+                    loaded.rig_path.display()
+                ),
+            },
+            (None, s) if loaded.rig.uses_sim() => parse_scale(s.unwrap_or("virtual"))?,
+            (None, Some(s)) => anyhow::bail!(
+                "--time-scale {s}: rig `{}` drives real devices, which run in real time",
+                loaded.rig.name
+            ),
+            (None, None) => ClockMode::Monotonic,
         };
         let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
         let mode = if self.quiet {
@@ -118,4 +121,19 @@ impl Cmd {
             Status::Failed | Status::Running => ExitCode::from(1),
         })
     }
+}
+
+/// `virtual` or a positive speed-up.
+fn parse_scale(s: &str) -> anyhow::Result<ClockMode> {
+    if s == "virtual" {
+        return Ok(ClockMode::Virtual);
+    }
+    let scale: f64 = s
+        .parse()
+        .ok()
+        .filter(|v: &f64| *v > 0.0 && v.is_finite())
+        .with_context(|| {
+            format!("--time-scale `{s}`: write `virtual` or a positive number, e.g. 60")
+        })?;
+    Ok(ClockMode::Scaled { scale })
 }

@@ -2,12 +2,10 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
 use anyhow::Context as _;
-use experiments::bench::{serve, write_bound};
-use experiments::protocol::load_rig;
+use experiments::bench::{ServeOptions, serve, write_bound};
+use experiments::protocol::{load_rig, plant_spec};
 
 /// Simulated devices on real transports.
 #[derive(clap::Args)]
@@ -18,18 +16,27 @@ pub(crate) struct Cmd {
 
 #[derive(clap::Subcommand)]
 enum Action {
-    /// Start twins of a rig file's devices (Zaber on pseudo-terminals, Net F/T on loopback
-    /// UDP/TCP) and write the rig file with their addresses; runs until Ctrl-C.
+    /// Start twins of a rig file's devices (Zaber and SMC100 on pseudo-terminals, Modbus on
+    /// loopback TCP or a pseudo-terminal, Net F/T on loopback UDP/TCP) and write the rig
+    /// file with their addresses; runs until Ctrl-C or SIGTERM.
     Serve {
         /// The rig file naming the devices to twin.
         #[arg(long, value_name = "RIG.yaml")]
         rig: PathBuf,
+        /// A protocol whose sensor and indenter the twins simulate: the force sensor then
+        /// reads the same elastomer as a dry run. Without it the force reads zero.
+        #[arg(long, value_name = "PROTOCOL.yaml")]
+        protocol: Option<PathBuf>,
+        /// Speed-up over the wall of the stages and the elastomer (a run against the
+        /// bound rig uses the same), e.g. 100 runs an hour-long protocol in 36 s.
+        #[arg(long, default_value_t = 1.0)]
+        time_scale: f64,
+        /// Seed of the simulated sensor's noise and offset.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
         /// Where to write the bound rig file [default: RIG.bound.yaml beside it].
         #[arg(long, value_name = "FILE")]
         write: Option<PathBuf>,
-        /// Spring stiffness coupling the normal stage to the force sensor, N/mm.
-        #[arg(long, default_value_t = 12.5)]
-        stiffness: f64,
     },
 }
 
@@ -37,55 +44,66 @@ impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
         let Action::Serve {
             rig: path,
+            protocol,
+            time_scale,
+            seed,
             write,
-            stiffness,
         } = self.action;
-        let (rig, _) = match load_rig(&path) {
-            Ok(r) => r,
-            Err(diags) => {
-                super::report(&diags);
-                return Ok(ExitCode::from(super::EXIT_INVALID));
+        let (rig, plant) = match &protocol {
+            Some(p) => {
+                let loaded = match super::load_or_report(p, Some(&path)) {
+                    Ok(l) => l,
+                    Err(code) => return Ok(code),
+                };
+                let spec = plant_spec(&loaded.protocol, &loaded.compiled)
+                    .map_err(anyhow::Error::msg)
+                    .with_context(|| format!("the elastomer of {}", p.display()))?;
+                let axes = loaded.compiled.needs.axes.clone();
+                (loaded.rig, Some((spec, axes)))
             }
+            None => match load_rig(&path) {
+                Ok((rig, _)) => (rig, None),
+                Err(diags) => {
+                    super::report(&diags);
+                    return Ok(ExitCode::from(super::EXIT_INVALID));
+                }
+            },
         };
-        let served = serve(&rig).context("starting the twins")?;
-        let out = write.unwrap_or_else(|| path.with_extension("bound.yaml"));
-        write_bound(&served, &out).with_context(|| format!("writing {}", out.display()))?;
-        for (role, a) in &served.bound.axes {
-            if let Some(p) = &a.port {
-                out!("{role}: zaber twin on {p}");
-            }
+        if protocol.is_none() && rig.force.is_some() {
+            eprintln!("note: no --protocol: the force sensor twin reads zero");
         }
-        if let Some(f) = &served.bound.force
-            && let Some(a) = &f.address
-        {
-            out!(
-                "force: net f/t twin at {a} (calibration port {})",
-                f.calibration_port.unwrap_or(0)
-            );
-        }
-        out!("wrote {}; Ctrl-C to stop", out.display());
-        let stop = Arc::new(AtomicBool::new(false));
-        let contact = rig.sim.as_ref().map_or(10.0, |s| s.normal_contact.mm());
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()
             .context("starting the runtime")?;
-        std::thread::scope(|scope| {
-            let flag = stop.clone();
-            let served = &served;
-            scope.spawn(move || served.couple(stiffness, contact, &flag));
-            let waited = rt.block_on(async {
-                let mut term =
-                    tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())?;
-                tokio::select! {
-                    r = tokio::signal::ctrl_c() => r,
-                    _ = term.recv() => Ok(()),
-                }
-            });
-            stop.store(true, std::sync::atomic::Ordering::Relaxed);
-            waited.context("waiting for Ctrl-C")
-        })?;
-        out!("twins stopped");
-        Ok(ExitCode::SUCCESS)
+        // Modbus TCP twins are tasks of this runtime: everything lives inside one block_on.
+        rt.block_on(async {
+            let options = ServeOptions {
+                time_scale,
+                plant,
+                seed,
+            };
+            let served = serve(&rig, options)
+                .await
+                .map_err(anyhow::Error::msg)
+                .context("starting the twins")?;
+            let out = write.unwrap_or_else(|| path.with_extension("bound.yaml"));
+            write_bound(&served, &out).with_context(|| format!("writing {}", out.display()))?;
+            for line in &served.listing {
+                out!("{line}");
+            }
+            out!("time scale {time_scale}×");
+            out!("wrote {}; Ctrl-C to stop", out.display());
+            let mut term =
+                tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+                    .context("listening for SIGTERM")?;
+            tokio::select! {
+                r = tokio::signal::ctrl_c() => r.context("waiting for Ctrl-C")?,
+                _ = term.recv() => {},
+            }
+            drop(served);
+            out!("twins stopped");
+            anyhow::Ok(ExitCode::SUCCESS)
+        })
     }
 }

@@ -54,8 +54,10 @@ pub(crate) fn exchange<T>(
     mut judge: impl FnMut(&str) -> Result<Option<T>, String>,
 ) -> std::io::Result<Outcome<T>> {
     let mut p = lock(port);
-    p.get_mut().write_all(line.as_bytes())?;
-    p.get_mut().flush()?;
+    p.get_mut()
+        .write_all(line.as_bytes())
+        .and_then(|()| p.get_mut().flush())
+        .map_err(disconnected)?;
     let deadline = Instant::now() + timeout;
     let mut buf = String::new();
     let mut garbled = None;
@@ -84,8 +86,19 @@ pub(crate) fn exchange<T>(
                     e.kind(),
                     std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
                 ) => {}
-            Err(e) => return Err(e),
+            Err(e) => return Err(disconnected(e)),
         }
     }
     Ok(Outcome::Nothing(garbled))
+}
+
+/// A write or read that fails outright (EPIPE, EIO: the USB adapter unplugged, or the
+/// twin behind a pseudo-terminal stopped) says so and how to recover.
+fn disconnected(e: std::io::Error) -> std::io::Error {
+    std::io::Error::new(
+        e.kind(),
+        format!(
+            "{e}: the device disconnected; fix: check its cable or USB adapter, then run `gelrig probe`"
+        ),
+    )
 }

@@ -57,14 +57,7 @@ impl Axis for FollowedAxis {
     async fn status(&mut self) -> Result<AxisStatus, RigError> {
         let s = self.inner.status().await?;
         let t_ns = self.clock.now_ns();
-        let at = [(self.role, s.position)];
-        let mut plant = lock(&self.plant);
-        plant.follow(&at, t_ns);
-        if !s.moving {
-            // Stopped: a second report of the same place marks the stage at rest, so
-            // friction re-sticks during the settle that follows.
-            plant.follow(&at, t_ns);
-        }
+        lock(&self.plant).follow(&[(self.role, s.position)], t_ns, !s.moving);
         Ok(s)
     }
 

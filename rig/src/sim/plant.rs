@@ -289,7 +289,10 @@ impl Plant {
     /// Moves the stages to where something outside says they are at `t_ns` (the wire
     /// twins of `gelrig sim serve`), linearly from where they were at the plant's last
     /// time, and integrates up to `t_ns`. An axis seen for the first time starts there.
-    pub(crate) fn follow(&mut self, positions: &[(AxisRole, f64)], t_ns: u64) {
+    /// `stopped`: the reporter knows the stages have come to rest there (a driver's
+    /// status), so friction re-sticks now rather than at the next report; without it a
+    /// stage counts as moving until a report finds it where the last one did.
+    pub(crate) fn follow(&mut self, positions: &[(AxisRole, f64)], t_ns: u64, stopped: bool) {
         let t0 = self.t_ns;
         let t1 = t_ns.max(t0);
         for &(role, p) in positions {
@@ -314,6 +317,14 @@ impl Plant {
             };
         }
         self.advance_to(t1);
+        if stopped {
+            for &(role, p) in positions {
+                if let Some(a) = self.axes.get_mut(&role) {
+                    a.followed_moving = false;
+                    a.motion = Motion::at_rest(p, t1);
+                }
+            }
+        }
     }
 
     /// Position and motion state of an axis at `t_ns` (advancing the plant first).
@@ -775,6 +786,22 @@ mod tests {
     }
 
     const S: u64 = 1_000_000_000;
+
+    /// A followed stage counts as moving until it is reported stopped, or found again
+    /// where it was last reported.
+    #[test]
+    fn a_followed_stage_rests_when_reported_stopped() {
+        let flat = Indenter::FlatCircle { diameter_mm: 9.5 };
+        let n = AxisRole::Normal;
+        for stopped in [false, true] {
+            let mut p = plant(flat, vec![], None, PlantNeeds::default());
+            p.follow(&[(n, 9.0)], 0, false);
+            p.follow(&[(n, 10.2)], S, stopped);
+            assert_eq!(p.moving(n, S), !stopped, "stopped: {stopped}");
+            p.follow(&[(n, 10.2)], 2 * S, false);
+            assert!(!p.moving(n, 2 * S));
+        }
+    }
 
     #[test]
     fn step_relaxes_to_the_elastic_force() {

@@ -57,7 +57,7 @@ impl TwinPlant {
     /// the sensor's reading then: bias, noise, resolution and clipping as in a dry run,
     /// with the saturation flag in the status.
     pub fn sense(&mut self, positions: &[(AxisRole, f64)], t_ns: u64) -> (Wrench, u32) {
-        self.plant.follow(positions, t_ns);
+        self.plant.follow(positions, t_ns, false);
         self.plant.sense(t_ns, &self.range)
     }
 

@@ -325,7 +325,7 @@ impl ModbusTwin {
 
     /// Where the drive is, steps.
     pub fn position_steps(&self) -> f64 {
-        lock(&self.drive).at().0
+        (self.position_probe())()
     }
 
     /// A handle reading the position in steps, for a plant that follows the drive.

@@ -88,7 +88,7 @@ impl Smc100Twin {
 
     /// Where the stage is now, mm.
     pub fn position_mm(&self) -> f64 {
-        lock(&self.state).at(Instant::now()).0
+        (self.position_probe())()
     }
 
     /// A handle reading the position in mm, for a plant that follows the stage.

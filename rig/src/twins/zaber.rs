@@ -92,7 +92,7 @@ impl ZaberTwin {
 
     /// Where the stage is now, in microsteps (for coupling it to a simulated load).
     pub fn position_microsteps(&self) -> f64 {
-        lock(&self.state).motion.at(Instant::now()).0
+        (self.position_probe())()
     }
 
     /// A handle reading the position in microsteps, for a plant that follows the stage.

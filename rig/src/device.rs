@@ -72,11 +72,26 @@ pub struct AxisStatus {
     pub referenced: bool,
 }
 
+/// Stops an axis without waiting for whoever owns it.
+///
+/// The safety watchdog holds one per axis and uses it while the plan task may be inside a
+/// driver call on the same axis (a move, a status poll being retried): the stop shares the
+/// axis's transport but not its request/reply cycle, so it goes out at once — a second
+/// handle on a serial port, the shared plant, or the Modbus context's turn.
+#[async_trait]
+pub trait AxisStopper: Send + Sync {
+    /// Commands the axis to stop as fast as the device allows; returns once the command
+    /// has been sent (the axis may still be decelerating).
+    async fn stop_now(&self) -> Result<(), RigError>;
+}
+
 /// A motorised (or operator-turned) stage axis.
 #[async_trait]
 pub trait Axis: Send {
     /// Static description.
     fn info(&self) -> &AxisInfo;
+    /// A handle that stops this axis from another task (the safety watchdog's).
+    fn stopper(&self) -> std::sync::Arc<dyn AxisStopper>;
     /// Starts homing; completion shows as `!moving && referenced` in [`Axis::status`].
     async fn home(&mut self) -> Result<(), RigError>;
     /// Starts a move to `target` at `speed`; returns once the device accepted it.

@@ -22,8 +22,8 @@ pub mod units;
 
 pub use clock::{Clock, ClockMode};
 pub use device::{
-    Axis, AxisInfo, AxisStatus, Camera, CameraInfo, Disturber, ForceInfo, ForceRange, ForceSample,
-    ForceSensor, Frame, STATUS_SATURATED, SimTruth, Wrench,
+    Axis, AxisInfo, AxisStatus, AxisStopper, Camera, CameraInfo, Disturber, ForceInfo, ForceRange,
+    ForceSample, ForceSensor, Frame, STATUS_SATURATED, SimTruth, Wrench,
 };
 pub use error::RigError;
 pub use open::{OpenRequest, OpenedDevice, Rig, open};

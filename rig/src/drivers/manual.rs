@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 
 use async_trait::async_trait;
 
-use crate::device::{Axis, AxisInfo, AxisStatus};
+use crate::device::{Axis, AxisInfo, AxisStatus, AxisStopper};
 use crate::{RigError, lock};
 
 /// The operator's terminal.
@@ -80,10 +80,32 @@ impl ManualAxis {
     }
 }
 
+/// Nothing can stop a hand-turned micrometer but its operator: tell them.
+struct ManualStopper {
+    role: String,
+}
+
+#[async_trait]
+impl AxisStopper for ManualStopper {
+    async fn stop_now(&self) -> Result<(), RigError> {
+        eprintln!(
+            "STOP: do not turn the {} micrometer any further; gelrig stopped the run",
+            self.role
+        );
+        Ok(())
+    }
+}
+
 #[async_trait]
 impl Axis for ManualAxis {
     fn info(&self) -> &AxisInfo {
         &self.info
+    }
+
+    fn stopper(&self) -> Arc<dyn AxisStopper> {
+        Arc::new(ManualStopper {
+            role: self.info.role.clone(),
+        })
     }
 
     async fn home(&mut self) -> Result<(), RigError> {

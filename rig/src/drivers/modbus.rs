@@ -21,7 +21,7 @@ use tokio_modbus::client::{rtu, tcp};
 pub use super::serial_async::Parity;
 use super::serial_async::{AsyncSerial, baud_rate};
 use crate::RigError;
-use crate::device::{Axis, AxisInfo, AxisStatus};
+use crate::device::{Axis, AxisInfo, AxisStatus, AxisStopper};
 
 /// Order of the two 16-bit words of a 32-bit value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema, Default)]
@@ -184,11 +184,69 @@ impl ModbusMap {
     }
 }
 
+/// One request with its timeout, both error layers of `tokio-modbus` kept apart. The
+/// timeout covers the wait for the link too.
+async fn call<T>(
+    ctx: &tokio::sync::Mutex<Context>,
+    timeout: Duration,
+    name: &str,
+    what: &str,
+    f: impl AsyncFnOnce(&mut Context) -> tokio_modbus::Result<T>,
+) -> Result<T, RigError> {
+    let r = tokio::time::timeout(timeout, async {
+        let mut c = ctx.lock().await;
+        f(&mut c).await
+    })
+    .await;
+    match r {
+        Err(_) => Err(RigError::Timeout {
+            device: name.to_string(),
+            timeout_ms: timeout.as_millis() as u64,
+        }),
+        Ok(Err(e)) => Err(RigError::Io {
+            device: name.to_string(),
+            source: std::io::Error::other(e.to_string()),
+        }),
+        Ok(Ok(Err(exception))) => Err(RigError::Rejected {
+            device: name.to_string(),
+            command: what.to_string(),
+            reason: exception.to_string(),
+        }),
+        Ok(Ok(Ok(v))) => Ok(v),
+    }
+}
+
+/// Writes the map's stop register on the shared link.
+struct ModbusStopper {
+    ctx: std::sync::Arc<tokio::sync::Mutex<Context>>,
+    stop: RegWrite,
+    timeout: Duration,
+    name: String,
+}
+
+#[async_trait]
+impl AxisStopper for ModbusStopper {
+    async fn stop_now(&self) -> Result<(), RigError> {
+        let w = self.stop;
+        call(
+            &self.ctx,
+            self.timeout,
+            &self.name,
+            "stop",
+            async |c: &mut Context| c.write_single_register(w.addr, w.value).await,
+        )
+        .await
+    }
+}
+
 /// The driver.
 pub struct ModbusAxis {
     info: AxisInfo,
     map: ModbusMap,
-    ctx: Context,
+    /// Shared with the watchdog's stopper: Modbus has one request in flight per link (RTU
+    /// has no transaction ids), so a stop waits for the request in flight (bounded by the
+    /// map's timeout) and then goes first.
+    ctx: std::sync::Arc<tokio::sync::Mutex<Context>>,
 }
 
 impl ModbusAxis {
@@ -242,7 +300,11 @@ impl ModbusAxis {
             }
         };
         info.identity = device;
-        let mut a = Self { info, map, ctx };
+        let mut a = Self {
+            info,
+            map,
+            ctx: std::sync::Arc::new(tokio::sync::Mutex::new(ctx)),
+        };
         a.status().await?;
         Ok(a)
     }
@@ -257,24 +319,7 @@ impl ModbusAxis {
         what: &str,
         f: impl AsyncFnOnce(&mut Context) -> tokio_modbus::Result<T>,
     ) -> Result<T, RigError> {
-        let timeout = self.map.timeout();
-        let name = self.name();
-        match tokio::time::timeout(timeout, f(&mut self.ctx)).await {
-            Err(_) => Err(RigError::Timeout {
-                device: name,
-                timeout_ms: timeout.as_millis() as u64,
-            }),
-            Ok(Err(e)) => Err(RigError::Io {
-                device: name,
-                source: std::io::Error::other(e.to_string()),
-            }),
-            Ok(Ok(Err(exception))) => Err(RigError::Rejected {
-                device: name,
-                command: what.to_string(),
-                reason: exception.to_string(),
-            }),
-            Ok(Ok(Ok(v))) => Ok(v),
-        }
+        call(&self.ctx, self.map.timeout(), &self.name(), what, f).await
     }
 
     async fn write(&mut self, what: &str, w: RegWrite) -> Result<(), RigError> {
@@ -289,6 +334,15 @@ impl ModbusAxis {
 impl Axis for ModbusAxis {
     fn info(&self) -> &AxisInfo {
         &self.info
+    }
+
+    fn stopper(&self) -> std::sync::Arc<dyn AxisStopper> {
+        std::sync::Arc::new(ModbusStopper {
+            ctx: self.ctx.clone(),
+            stop: self.map.stop,
+            timeout: self.map.timeout(),
+            name: self.name(),
+        })
     }
 
     async fn home(&mut self) -> Result<(), RigError> {

@@ -36,6 +36,36 @@ pub(crate) fn open(
     Ok(Arc::new(Mutex::new(BufReader::new(port))))
 }
 
+/// A second, write-only handle on an open port: a stop line goes out through it while an
+/// exchange on the first handle holds the reader waiting for its reply. A tty serialises
+/// whole `write` calls, so the two lines never interleave byte-wise.
+pub(crate) type LineWriter = Arc<Mutex<Box<dyn serialport::SerialPort>>>;
+
+/// Clones `port`'s file descriptor into a [`LineWriter`].
+pub(crate) fn writer(port: &LinePort, device: &str) -> Result<LineWriter, RigError> {
+    let clone = lock(port).get_ref().try_clone().map_err(|e| RigError::Io {
+        device: device.to_string(),
+        source: std::io::Error::other(format!("cannot open a second handle for stops: {e}")),
+    })?;
+    Ok(Arc::new(Mutex::new(clone)))
+}
+
+/// Writes `line` through `w` on the blocking pool, without reading any reply.
+pub(crate) async fn send_only(w: &LineWriter, line: String, device: &str) -> Result<(), RigError> {
+    let w = w.clone();
+    tokio::task::spawn_blocking(move || {
+        let mut p = lock(&w);
+        p.write_all(line.as_bytes()).and_then(|()| p.flush())
+    })
+    .await
+    .map_err(|e| std::io::Error::other(e.to_string()))
+    .and_then(|r| r)
+    .map_err(|e| RigError::Io {
+        device: device.to_string(),
+        source: disconnected(e),
+    })
+}
+
 /// What a reply loop saw.
 pub(crate) enum Outcome<T> {
     /// The answer.

@@ -12,9 +12,9 @@ use std::time::Duration;
 
 use async_trait::async_trait;
 
-use super::serial_line::{self, LinePort, Outcome};
+use super::serial_line::{self, LinePort, LineWriter, Outcome};
 use crate::RigError;
-use crate::device::{Axis, AxisInfo, AxisStatus};
+use crate::device::{Axis, AxisInfo, AxisStatus, AxisStopper};
 
 /// How to reach one controller.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,6 +34,7 @@ pub struct Smc100Axis {
     info: AxisInfo,
     s: Smc100Settings,
     port: LinePort,
+    stop_line: LineWriter,
 }
 
 /// The meaning of a `TE` error letter.
@@ -57,16 +58,14 @@ pub fn te_meaning(code: char) -> &'static str {
 impl Smc100Axis {
     /// Opens the port and reads the controller's identity (`ID?`).
     pub async fn open(s: Smc100Settings, mut info: AxisInfo) -> Result<Self, RigError> {
-        let port = serial_line::open(
-            &s.port,
-            57_600,
-            true,
-            &format!("SMC100 #{} on {}", s.address, s.port),
-        )?;
+        let name = format!("SMC100 #{} on {}", s.address, s.port);
+        let port = serial_line::open(&s.port, 57_600, true, &name)?;
+        let stop_line = serial_line::writer(&port, &name)?;
         let mut a = Self {
             info: info.clone(),
             s,
             port,
+            stop_line,
         };
         let id = a.query("ID?").await?;
         info.identity = format!("Newport {id} (address {} on {})", a.s.address, a.s.port);
@@ -191,10 +190,32 @@ fn exchange(port: &LinePort, line: &str, echo: Option<&str>, timeout: Duration) 
     }
 }
 
+/// Writes `ST` (a set command: no reply) on the port's second handle.
+struct Smc100Stopper {
+    line: String,
+    writer: LineWriter,
+    name: String,
+}
+
+#[async_trait]
+impl AxisStopper for Smc100Stopper {
+    async fn stop_now(&self) -> Result<(), RigError> {
+        serial_line::send_only(&self.writer, self.line.clone(), &self.name).await
+    }
+}
+
 #[async_trait]
 impl Axis for Smc100Axis {
     fn info(&self) -> &AxisInfo {
         &self.info
+    }
+
+    fn stopper(&self) -> std::sync::Arc<dyn AxisStopper> {
+        std::sync::Arc::new(Smc100Stopper {
+            line: format!("{}ST\r\n", self.s.address),
+            writer: self.stop_line.clone(),
+            name: self.name(),
+        })
     }
 
     async fn home(&mut self) -> Result<(), RigError> {

@@ -11,10 +11,14 @@ use std::time::Duration;
 
 use async_trait::async_trait;
 
-use super::serial_line::{self, LinePort, Outcome};
+use super::serial_line::{self, LinePort, LineWriter, Outcome};
 use super::zaber_ascii::{Reply, parse_reply, with_checksum};
 use crate::RigError;
-use crate::device::{Axis, AxisInfo, AxisStatus};
+use crate::device::{Axis, AxisInfo, AxisStatus, AxisStopper};
+
+/// Message id kept for the watchdog's stop: transactions use 0–98, so the stop's reply is
+/// never taken for a transaction's.
+const STOP_ID: u8 = 99;
 
 /// How to reach one Zaber axis.
 #[derive(Debug, Clone, PartialEq)]
@@ -41,6 +45,7 @@ pub struct ZaberAxis {
     info: AxisInfo,
     settings: ZaberSettings,
     port: LinePort,
+    stop_line: LineWriter,
     next_id: u8,
     /// Last warning flag seen (e.g. `NI` after an interrupted move), for diagnostics.
     pub last_warning: Option<String>,
@@ -56,10 +61,12 @@ impl ZaberAxis {
     pub async fn open(settings: ZaberSettings, mut info: AxisInfo) -> Result<Self, RigError> {
         let name = device_name(&settings);
         let port = serial_line::open(&settings.port, 115_200, false, &name)?;
+        let stop_line = serial_line::writer(&port, &name)?;
         let mut axis = Self {
             info: info.clone(),
             settings,
             port,
+            stop_line,
             next_id: 0,
             last_warning: None,
         };
@@ -81,7 +88,7 @@ impl ZaberAxis {
         let name = device_name(&s);
         let mut last_problem = None;
         for _ in 0..=s.retries {
-            self.next_id = (self.next_id + 1) % 100;
+            self.next_id = (self.next_id + 1) % STOP_ID;
             let id = self.next_id;
             let body = format!(
                 "{} {} {id} {cmd}",
@@ -169,10 +176,34 @@ fn exchange(
     }
 }
 
+/// Writes `stop` with the reserved id on the port's second handle.
+struct ZaberStopper {
+    line: String,
+    writer: LineWriter,
+    name: String,
+}
+
+#[async_trait]
+impl AxisStopper for ZaberStopper {
+    async fn stop_now(&self) -> Result<(), RigError> {
+        serial_line::send_only(&self.writer, self.line.clone(), &self.name).await
+    }
+}
+
 #[async_trait]
 impl Axis for ZaberAxis {
     fn info(&self) -> &AxisInfo {
         &self.info
+    }
+
+    fn stopper(&self) -> std::sync::Arc<dyn AxisStopper> {
+        let s = &self.settings;
+        let body = format!("{} {} {STOP_ID} stop", s.device, s.axis);
+        std::sync::Arc::new(ZaberStopper {
+            line: format!("/{}\n", with_checksum(&body, s.checksum)),
+            writer: self.stop_line.clone(),
+            name: device_name(s),
+        })
     }
 
     async fn home(&mut self) -> Result<(), RigError> {

@@ -7,7 +7,7 @@ use async_trait::async_trait;
 
 use super::plant::Plant;
 use crate::config::AxisRole;
-use crate::device::{Axis, AxisInfo, AxisStatus};
+use crate::device::{Axis, AxisInfo, AxisStatus, AxisStopper};
 use crate::{Clock, RigError, lock};
 
 /// A stage that behaves like the thesis's micrometer stages seen through a controller:
@@ -37,10 +37,36 @@ impl SimAxis {
     }
 }
 
+/// Stops a simulated stage through the shared plant.
+struct SimStopper {
+    role: AxisRole,
+    resolution: f64,
+    plant: Arc<Mutex<Plant>>,
+    clock: Clock,
+}
+
+#[async_trait]
+impl AxisStopper for SimStopper {
+    async fn stop_now(&self) -> Result<(), RigError> {
+        let now = self.clock.now_ns();
+        lock(&self.plant).stop(self.role, now, self.resolution);
+        Ok(())
+    }
+}
+
 #[async_trait]
 impl Axis for SimAxis {
     fn info(&self) -> &AxisInfo {
         &self.info
+    }
+
+    fn stopper(&self) -> Arc<dyn AxisStopper> {
+        Arc::new(SimStopper {
+            role: self.role,
+            resolution: self.info.resolution,
+            plant: self.plant.clone(),
+            clock: self.clock.clone(),
+        })
     }
 
     async fn home(&mut self) -> Result<(), RigError> {

@@ -13,7 +13,7 @@ use async_trait::async_trait;
 
 use super::plant::Plant;
 use crate::config::AxisRole;
-use crate::device::{Axis, AxisInfo, AxisStatus};
+use crate::device::{Axis, AxisInfo, AxisStatus, AxisStopper};
 use crate::{Clock, RigError, lock};
 
 /// Wraps a driver; behaves exactly like it.
@@ -44,6 +44,10 @@ impl FollowedAxis {
 impl Axis for FollowedAxis {
     fn info(&self) -> &AxisInfo {
         self.inner.info()
+    }
+
+    fn stopper(&self) -> Arc<dyn AxisStopper> {
+        self.inner.stopper()
     }
 
     async fn home(&mut self) -> Result<(), RigError> {

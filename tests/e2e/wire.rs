@@ -215,7 +215,8 @@ fn the_time_scale_follows_the_twins() {
     let real = wire.replace("camera: {driver: sim", "camera: {driver: v4l2");
     let (ok, err) = run(&real, "5");
     assert!(
-        !ok && err.contains("real devices, which run in real time"),
+        !ok && err.contains("drives real devices (normal, force, camera)")
+            && err.contains("which run in real time"),
         "{err}"
     );
     assert!(!tmp.path().join("runs").exists(), "nothing was recorded");

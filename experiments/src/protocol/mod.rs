@@ -37,6 +37,40 @@ pub struct Loaded {
     pub warnings: Vec<Diagnostic>,
 }
 
+impl Loaded {
+    /// The real (not simulated in-process) devices this protocol opens, by role. Any one of
+    /// them puts the run on the monotonic clock: a real stage or sensor cannot be driven in
+    /// virtual time.
+    pub fn real_devices(&self) -> Vec<String> {
+        use rig::config::{AxisDriver, CameraDriver, DisturberDriver, ForceDriver};
+        let needs = &self.compiled.needs;
+        let mut real = Vec::new();
+        for role in &needs.axes {
+            if self
+                .rig
+                .axes
+                .get(role)
+                .is_some_and(|a| !matches!(a.driver, AxisDriver::Sim))
+            {
+                real.push(role.to_string());
+            }
+        }
+        let force = self.rig.force.as_ref();
+        if needs.force && force.is_some_and(|f| !matches!(f.driver, ForceDriver::Sim)) {
+            real.push("force".into());
+        }
+        let camera = self.rig.camera.as_ref();
+        if needs.camera && camera.is_some_and(|c| !matches!(c.driver, CameraDriver::Sim)) {
+            real.push("camera".into());
+        }
+        let disturber = self.rig.disturber.as_ref();
+        if needs.disturber && disturber.is_some_and(|d| !matches!(d.driver, DisturberDriver::Sim)) {
+            real.push("disturber".into());
+        }
+        real
+    }
+}
+
 /// Reads and checks a rig file on its own (for `gelrig probe` and `gelrig sim serve`).
 pub fn load_rig(path: &Path) -> Result<(RigConfig, String), Vec<Diagnostic>> {
     let text = read(path, "the rig file")?;

@@ -4,8 +4,10 @@ use std::sync::{Arc, Mutex};
 
 use async_trait::async_trait;
 
+use mechanics::response::ContactModel;
+
 use super::plant::Plant;
-use super::render::Renderer;
+use super::render::{Renderer, SurfaceView};
 use crate::device::{Camera, CameraInfo, Frame};
 use crate::{Clock, RigError, lock};
 
@@ -17,11 +19,20 @@ pub(crate) struct SimCamera {
     period_ns: u64,
     last_t_ns: Option<u64>,
     renderer: Renderer,
+    /// The camera's own copy of the contact model: fields are computed outside the plant's
+    /// lock, so rendering never holds up the force sensor.
+    model: ContactModel,
 }
 
 impl SimCamera {
     pub(crate) fn new(info: CameraInfo, plant: Arc<Mutex<Plant>>, clock: Clock) -> Self {
-        let renderer = Renderer::new(lock(&plant).spec(), info.width, info.height);
+        let (renderer, model) = {
+            let p = lock(&plant);
+            (
+                Renderer::new(p.spec(), info.width, info.height),
+                p.field_model(),
+            )
+        };
         let period_ns = (1e9 / info.fps.max(1e-3)).round() as u64;
         Self {
             info,
@@ -30,6 +41,7 @@ impl SimCamera {
             period_ns,
             last_t_ns: None,
             renderer,
+            model,
         }
     }
 }
@@ -50,7 +62,12 @@ impl Camera for SimCamera {
         }
         self.clock.sleep_until_ns(t).await;
         self.last_t_ns = Some(t);
-        let surface = lock(&self.plant).surface(t);
+        let pose = lock(&self.plant).surface_pose(t);
+        let surface = self.model.field(pose.state).map(|field| SurfaceView {
+            field,
+            centre_mm: pose.centre_mm,
+            rotation_rad: pose.rotation_rad,
+        });
         let seq = t / self.period_ns;
         let (rgb, truth) = self.renderer.render(surface.as_ref(), seq);
         Ok(Frame {

@@ -26,7 +26,6 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 
-use super::render::SurfaceView;
 use crate::RigError;
 use crate::config::AxisRole;
 use crate::device::{ForceRange, STATUS_SATURATED, SimTruth, Wrench};
@@ -183,6 +182,17 @@ const BASE_STIFFNESS_N_PER_MM: f64 = 1e4;
 /// Lift over which the table's support of a grasped object hands over to the grasp, mm.
 const TABLE_HANDOVER_MM: f64 = 0.5;
 const GRAVITY_M_S2: f64 = 9.81;
+
+/// The contact's state and its placement in the camera view at one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SurfacePose {
+    /// Depth and the elastic tangential loads the field is computed for.
+    pub(crate) state: State,
+    /// Where the contact centre has slipped to, mm.
+    pub(crate) centre_mm: (f64, f64),
+    /// How far the contact has turned by slipping, rad.
+    pub(crate) rotation_rad: f64,
+}
 
 /// The simulated elastomer, its indenter, and the stage positions that load it.
 #[derive(Debug)]
@@ -693,8 +703,16 @@ impl Plant {
         (w, status)
     }
 
-    /// The surface field at `t_ns`, placed in the camera view.
-    pub(crate) fn surface(&mut self, t_ns: u64) -> Option<SurfaceView> {
+    /// A copy of the contact model, for a camera to compute surface fields from without
+    /// holding the plant (a field can take most of a second to compute the first time,
+    /// and the force sensor must not wait for it, as it would not on a real bench).
+    pub(crate) fn field_model(&self) -> ContactModel {
+        self.model.clone()
+    }
+
+    /// The contact state at `t_ns` and where it sits in the camera view: what a field is
+    /// computed from.
+    pub(crate) fn surface_pose(&mut self, t_ns: u64) -> SurfacePose {
         self.advance_to(t_ns);
         let d = self.depth_at(t_ns);
         let h = self.spec.contact.layer.thickness_mm;
@@ -717,19 +735,17 @@ impl Plant {
             torque = c.element.force();
             slip_theta = (twist_pos - c.origin) - b.displacement_at(torque);
         }
-        let _ = h;
         // The sensor turns under a fixed indenter: relative to the gel the indenter turns
         // the other way, so the field's twist (and its slipped rotation) change sign.
-        let field = self.model.field(State {
-            depth_mm: d.min(0.95 * h),
-            shear_n,
-            torque_nmm: -torque,
-        })?;
-        Some(SurfaceView {
-            field,
+        SurfacePose {
+            state: State {
+                depth_mm: d.min(0.95 * h),
+                shear_n,
+                torque_nmm: -torque,
+            },
             centre_mm: (slip_x, 0.0),
             rotation_rad: -slip_theta,
-        })
+        }
     }
 
     /// How many times a grasped object slipped out of the grasp (ground truth for tests).

@@ -38,10 +38,15 @@ pub(crate) struct Cmd {
 
 impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
+        // First of all: from here on, Ctrl-C and SIGTERM are counted, never fatal, so the
+        // operator's interrupt always ends in a recorded stop.
+        let cancel = Cancel::new();
+        watch_signals(cancel.clone())?;
         let loaded = match super::load_or_report(&self.protocol, self.rig.as_deref()) {
             Ok(l) => l,
             Err(code) => return Ok(code),
         };
+        let real = loaded.real_devices();
         let clock = match (&loaded.rig.twins, self.time_scale.as_deref()) {
             // The twins of `gelrig sim serve` keep their own time: the run must match it.
             (Some(t), None) => ClockMode::Scaled {
@@ -56,11 +61,13 @@ impl Cmd {
                     loaded.rig_path.display()
                 ),
             },
-            (None, s) if loaded.rig.uses_sim() => parse_scale(s.unwrap_or("virtual"))?,
+            (None, s) if real.is_empty() => parse_scale(s.unwrap_or("virtual"))?,
             (None, Some(s)) => anyhow::bail!(
-                "--time-scale {s}: rig `{}` drives real devices, which run in real time",
+                "--time-scale {s}: this run drives real devices ({}) on rig `{}`, which run in real time; drop --time-scale",
+                real.join(", "),
                 loaded.rig.name
             ),
+            // Any real device puts the whole run, simulated devices included, in real time.
             (None, None) => ClockMode::Monotonic,
         };
         let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
@@ -71,42 +78,38 @@ impl Cmd {
         } else {
             ProgressMode::Auto
         };
-        // Virtual time: tokio's paused clock jumps to the next timer whenever the run waits.
-        let runtime = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .start_paused(clock == ClockMode::Virtual)
-            .build()
-            .context("starting the runtime")?;
-        let cancel = Cancel::new();
-        let outcome = runtime.block_on(async {
-            let c = cancel.clone();
-            tokio::spawn(async move {
-                let Ok(mut term) =
-                    tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
-                else {
-                    return;
-                };
-                loop {
-                    tokio::select! {
-                        r = tokio::signal::ctrl_c() => if r.is_err() { return },
-                        _ = term.recv() => {},
-                    }
-                    c.interrupt();
-                }
-            });
-            run(
-                RunRequest {
-                    loaded: &loaded,
-                    plan: &plan,
-                    out: self.out.clone(),
-                    seed: self.seed,
-                    clock,
-                    progress: mode,
-                },
-                cancel.clone(),
-            )
-            .await
-        });
+        if cancel.count() > 0 {
+            eprintln!("interrupted before the run started: nothing ran, no run directory");
+            return Ok(ExitCode::from(130));
+        }
+        // Virtual time: tokio's paused clock jumps to the next timer whenever the run waits;
+        // it needs the single-threaded runtime. On a real (or scaled) clock the watchdog
+        // gets a worker thread of its own, so nothing the plan computes can delay it.
+        let runtime = if clock == ClockMode::Virtual {
+            tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .start_paused(true)
+                .build()
+        } else {
+            tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+        }
+        .context("starting the runtime")?;
+        let outcome = runtime.block_on(run(
+            RunRequest {
+                loaded: &loaded,
+                plan: &plan,
+                out: self.out.clone(),
+                seed: self.seed,
+                clock,
+                progress: mode,
+            },
+            cancel.clone(),
+        ));
+        // A device open abandoned by an interrupt may still be computing: don't wait for it.
+        runtime.shutdown_background();
         let outcome = outcome.context("recording the run")?;
         out!("{}", outcome.dir.display());
         let status = outcome.status.name();
@@ -120,6 +123,54 @@ impl Cmd {
             Status::Aborted => ExitCode::from(3),
             Status::Failed | Status::Running => ExitCode::from(1),
         })
+    }
+}
+
+/// Installs SIGINT and SIGTERM handlers that count into `cancel`, on a thread of their own
+/// (the run's runtime cannot exist yet: whether its clock is virtual depends on the rig,
+/// which is still to be read). Returns once the handlers are in place.
+fn watch_signals(cancel: Cancel) -> anyhow::Result<()> {
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            let rt = match tokio::runtime::Builder::new_current_thread()
+                .enable_io()
+                .build()
+            {
+                Ok(rt) => rt,
+                Err(e) => {
+                    let _ = ready_tx.send(Err(e.to_string()));
+                    return;
+                }
+            };
+            rt.block_on(async move {
+                use tokio::signal::unix::{SignalKind, signal};
+                let (mut int, mut term) = match (
+                    signal(SignalKind::interrupt()),
+                    signal(SignalKind::terminate()),
+                ) {
+                    (Ok(i), Ok(t)) => (i, t),
+                    (Err(e), _) | (_, Err(e)) => {
+                        let _ = ready_tx.send(Err(e.to_string()));
+                        return;
+                    }
+                };
+                let _ = ready_tx.send(Ok(()));
+                loop {
+                    tokio::select! {
+                        _ = int.recv() => {}
+                        _ = term.recv() => {}
+                    }
+                    cancel.interrupt();
+                }
+            });
+        })
+        .context("starting the signal thread")?;
+    match ready_rx.recv() {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => anyhow::bail!("installing the Ctrl-C and SIGTERM handlers: {e}"),
+        Err(_) => anyhow::bail!("installing the Ctrl-C and SIGTERM handlers: the thread ended"),
     }
 }
 

@@ -1,0 +1,253 @@
+//! Writing files so that a failure leaves nothing half-written.
+//!
+//! A full disk, a read-only remount or a yanked USB drive must cost at most the row in
+//! flight, never the file's shape: appends go out as one whole row and are cut back to the
+//! last whole row if the write fails part-way ([`Appender`]); files that appear whole go
+//! through a temporary name and a rename ([`write_atomic`], [`write_new`]); and a small
+//! [`Reserve`] of disk space is held from the start so that, when the disk fills, freeing
+//! it leaves room to write the run's final status.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use super::RecordError;
+
+pub(super) fn io(path: &Path) -> impl FnOnce(std::io::Error) -> RecordError + '_ {
+    move |source| RecordError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// An append-only file written in whole records.
+pub(super) struct Appender {
+    path: PathBuf,
+    file: File,
+    /// Length up to the end of the last whole record.
+    len: u64,
+}
+
+impl Appender {
+    /// Creates (truncates) `path`.
+    pub(super) fn create(path: PathBuf) -> Result<Self, RecordError> {
+        let file = OpenOptions::new()
+            .create(true)
+            .truncate(true)
+            .write(true)
+            .open(&path)
+            .map_err(io(&path))?;
+        Ok(Self { path, file, len: 0 })
+    }
+
+    /// The file.
+    pub(super) fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Appends `bytes` as one record: on failure the file is cut back to its previous
+    /// length, so a reader never sees a torn record.
+    pub(super) fn append(&mut self, bytes: &[u8]) -> Result<(), RecordError> {
+        use std::io::{Seek, SeekFrom};
+        match self.file.write_all(bytes) {
+            Ok(()) => {
+                self.len += bytes.len() as u64;
+                Ok(())
+            }
+            Err(e) => {
+                // Best effort: the error that matters is the write's.
+                let _ = self.file.set_len(self.len);
+                let _ = self.file.seek(SeekFrom::Start(self.len));
+                Err(io(&self.path)(e))
+            }
+        }
+    }
+
+    /// Makes everything appended so far durable.
+    pub(super) fn sync(&mut self) -> Result<(), RecordError> {
+        self.file.sync_data().map_err(io(&self.path))
+    }
+}
+
+/// A CSV file of rows of one type, each written whole.
+pub(super) struct CsvFile {
+    out: Appender,
+    /// Whether the header went out (it is written with the first row).
+    header_written: bool,
+}
+
+impl CsvFile {
+    /// A new file; its header is written with the first row.
+    pub(super) fn create(path: PathBuf) -> Result<Self, RecordError> {
+        Ok(Self {
+            out: Appender::create(path)?,
+            header_written: false,
+        })
+    }
+
+    /// A new file whose header, from `example`'s field names, is on disk at once (so even a
+    /// run with no row has a readable file).
+    pub(super) fn with_header_of<T: serde::Serialize>(
+        path: PathBuf,
+        example: &T,
+    ) -> Result<Self, RecordError> {
+        let mut f = Self::create(path)?;
+        let bytes = f.encode(example)?;
+        let header_len = bytes
+            .iter()
+            .position(|&b| b == b'\n')
+            .map(|i| i + 1)
+            .unwrap_or(bytes.len());
+        f.out.append(&bytes[..header_len])?;
+        f.out.sync()?;
+        Ok(f)
+    }
+
+    /// One row in memory, with the header before the first.
+    fn encode<T: serde::Serialize>(&mut self, row: &T) -> Result<Vec<u8>, RecordError> {
+        let path = self.out.path().to_path_buf();
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(!self.header_written)
+            .from_writer(Vec::new());
+        w.serialize(row).map_err(|source| RecordError::Csv {
+            path: path.clone(),
+            source,
+        })?;
+        let bytes = w
+            .into_inner()
+            .map_err(|e| io(&path)(std::io::Error::other(e.to_string())))?;
+        self.header_written = true;
+        Ok(bytes)
+    }
+
+    /// Writes one row through to the OS, whole or not at all.
+    pub(super) fn row<T: serde::Serialize>(&mut self, row: &T) -> Result<(), RecordError> {
+        let bytes = self.encode(row)?;
+        self.out.append(&bytes)
+    }
+
+    /// Makes the rows durable.
+    pub(super) fn sync(&mut self) -> Result<(), RecordError> {
+        self.out.sync()
+    }
+}
+
+/// The temporary name a file is written under before it is renamed into place.
+fn temporary(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".tmp");
+    path.with_file_name(name)
+}
+
+fn write_temp(tmp: &Path, contents: &[u8], sync: bool) -> Result<(), RecordError> {
+    let r = (|| {
+        let mut f = File::create(tmp)?;
+        f.write_all(contents)?;
+        if sync {
+            f.sync_all()?;
+        }
+        Ok(())
+    })();
+    r.map_err(|e| {
+        let _ = fs::remove_file(tmp);
+        io(tmp)(e)
+    })
+}
+
+/// Writes `contents` to `path` atomically: temp file, fsync, rename, fsync the directory.
+/// On failure the temporary file is removed and `path` is untouched.
+pub fn write_atomic(path: &Path, contents: &[u8]) -> Result<(), RecordError> {
+    let tmp = temporary(path);
+    write_temp(&tmp, contents, true)?;
+    if let Err(e) = fs::rename(&tmp, path) {
+        let _ = fs::remove_file(&tmp);
+        return Err(io(path)(e));
+    }
+    if let Some(dir) = path.parent()
+        && let Ok(d) = File::open(dir)
+    {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+/// Writes a new file that appears whole or not at all (temp name, rename), without the
+/// per-file fsync of [`write_atomic`]: frames are made durable with their step.
+pub(super) fn write_new(path: &Path, contents: &[u8]) -> Result<(), RecordError> {
+    let tmp = temporary(path);
+    write_temp(&tmp, contents, false)?;
+    fs::rename(&tmp, path).map_err(|e| {
+        let _ = fs::remove_file(&tmp);
+        io(path)(e)
+    })
+}
+
+/// Disk space held back from the start of a run so the final status can still be written
+/// when the disk fills: released on the first write failure, and at the end of the run.
+pub(super) struct Reserve {
+    path: Option<PathBuf>,
+}
+
+impl Reserve {
+    /// Bytes held: `run.yaml` and the journal's last lines need a few kB; 128 KiB leaves
+    /// room for a long error message and a filesystem's block granularity.
+    const BYTES: usize = 128 * 1024;
+
+    /// Writes the reserve file (fsynced, so its blocks are really allocated).
+    pub(super) fn hold(path: PathBuf) -> Result<Self, RecordError> {
+        write_temp(&path, &vec![0u8; Self::BYTES], true)?;
+        Ok(Self { path: Some(path) })
+    }
+
+    /// Gives the space back.
+    pub(super) fn release(&mut self) {
+        if let Some(p) = self.path.take() {
+            let _ = fs::remove_file(p);
+        }
+    }
+}
+
+impl Drop for Reserve {
+    fn drop(&mut self) {
+        self.release();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_atomic_write_leaves_no_temporary() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        // A directory where the file should go makes the rename fail.
+        let target = dir.path().join("run.yaml");
+        fs::create_dir(&target).expect("mkdir");
+        assert!(write_atomic(&target, b"status: completed\n").is_err());
+        let left: Vec<_> = fs::read_dir(dir.path())
+            .expect("list")
+            .map(|e| e.expect("entry").file_name())
+            .collect();
+        assert_eq!(left, vec![std::ffi::OsString::from("run.yaml")]);
+    }
+
+    #[test]
+    fn csv_header_then_whole_rows() {
+        #[derive(serde::Serialize)]
+        struct Row {
+            t_ns: u64,
+            fz_n: f64,
+        }
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("force.csv");
+        let mut f =
+            CsvFile::with_header_of(path.clone(), &Row { t_ns: 0, fz_n: 0.0 }).expect("create");
+        assert_eq!(fs::read_to_string(&path).expect("read"), "t_ns,fz_n\n");
+        f.row(&Row { t_ns: 5, fz_n: 1.5 }).expect("row");
+        f.row(&Row { t_ns: 6, fz_n: 2.5 }).expect("row");
+        assert_eq!(
+            fs::read_to_string(&path).expect("read"),
+            "t_ns,fz_n\n5,1.5\n6,2.5\n"
+        );
+    }
+}

@@ -1,0 +1,116 @@
+//! `run.yaml`: the run's status and provenance, and how other commands read it.
+
+use std::collections::BTreeMap;
+use std::fs::{self, OpenOptions};
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+/// Run status as written in `run.yaml`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// In progress (or killed, if the lock is free).
+    Running,
+    /// Finished every step.
+    Completed,
+    /// Stopped by the operator or a safety limit; motion stopped and retracted.
+    Aborted,
+    /// Stopped by an error (device, disk).
+    Failed,
+}
+
+impl Status {
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Running => "running",
+            Status::Completed => "completed",
+            Status::Aborted => "aborted",
+            Status::Failed => "failed",
+        }
+    }
+}
+
+/// A device as recorded in the manifest.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DeviceRecord {
+    /// Role.
+    pub role: String,
+    /// Identity.
+    pub identity: String,
+}
+
+/// `run.yaml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Run status.
+    pub status: Status,
+    /// Why the run was aborted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// The error that failed the run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Protocol name.
+    pub protocol: String,
+    /// Protocol file as given.
+    pub protocol_file: String,
+    /// Rig name.
+    pub rig: String,
+    /// Rig file as given.
+    pub rig_file: String,
+    /// Start, RFC 3339 UTC.
+    pub started_utc: String,
+    /// End, RFC 3339 UTC.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ended_utc: Option<String>,
+    /// gelrig version.
+    pub gelrig_version: String,
+    /// Seed of the simulated devices.
+    pub seed: u64,
+    /// `virtual`, `scaled ×k` or `monotonic`.
+    pub clock: String,
+    /// Process id of the run.
+    pub pid: u32,
+    /// Steps the plan has.
+    pub steps_planned: u32,
+    /// Steps completed and on disk.
+    pub steps_completed: u32,
+    /// Planned duration, [min, max] s.
+    pub eta_s: [f64; 2],
+    /// Devices opened.
+    #[serde(default)]
+    pub devices: Vec<DeviceRecord>,
+    /// Tare offsets subtracted from every sample: fx, fy, fz (N), tx, ty, tz (N·mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tare: Option<[f64; 6]>,
+    /// Axis origins (contact points), absolute, in the axis unit.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub origins: BTreeMap<String, f64>,
+    /// Absolute axis positions at the end.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub final_positions: BTreeMap<String, f64>,
+    /// Safety events (limit trips).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub safety_events: Vec<String>,
+    /// Warnings from validation and the run.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+}
+
+/// Reads a run directory's manifest.
+pub fn read_manifest(dir: &Path) -> Result<Manifest, String> {
+    let path = dir.join("run.yaml");
+    let text =
+        fs::read_to_string(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    serde_yaml::from_str(&text).map_err(|e| format!("cannot parse {}: {e}", path.display()))
+}
+
+/// True if a process still holds the run's lock (the run is really in progress).
+pub fn is_locked(dir: &Path) -> bool {
+    match OpenOptions::new().write(true).open(dir.join("run.lock")) {
+        Ok(f) => f.try_lock().is_err(),
+        Err(_) => false,
+    }
+}

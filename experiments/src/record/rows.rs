@@ -1,0 +1,155 @@
+//! The rows of the run directory's CSV files.
+
+use serde::{Deserialize, Serialize};
+
+/// One row of `steps.csv`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepRow {
+    /// Step number.
+    pub step: u32,
+    /// Trial.
+    pub trial: u32,
+    /// Label.
+    pub label: String,
+    /// load, unload, move, hold, capture, disturb.
+    pub phase: String,
+    /// Axis moved, or empty.
+    pub axis: String,
+    /// Target relative to the axis origin, axis unit (empty without a move).
+    pub target: Option<f64>,
+    /// Position relative to the axis origin at the end of the step.
+    pub position: Option<f64>,
+    /// mm or deg.
+    pub unit: String,
+    /// Quasistatic (window-mean) force and torque.
+    pub fx_n: Option<f64>,
+    /// See `fx_n`.
+    pub fy_n: Option<f64>,
+    /// See `fx_n`.
+    pub fz_n: Option<f64>,
+    /// See `fx_n`.
+    pub tx_nmm: Option<f64>,
+    /// See `fx_n`.
+    pub ty_nmm: Option<f64>,
+    /// See `fx_n`.
+    pub tz_nmm: Option<f64>,
+    /// Time waited after the move, s.
+    pub settle_s: f64,
+    /// fixed, converged, timeout or none.
+    pub settle_verdict: String,
+    /// Averaging window, s.
+    pub force_window_s: f64,
+    /// Samples in the window.
+    pub window_samples: u32,
+    /// Standard deviation of the signal along the axis over the window.
+    pub window_std: Option<f64>,
+    /// Whether any sample in the step was saturated.
+    pub saturated: bool,
+    /// Frames captured.
+    pub frames: u32,
+    /// Absolute position at the end.
+    pub position_abs: Option<f64>,
+    /// Step start, ns.
+    pub t_start_ns: u64,
+    /// End of the settle, which is the end of the force window, ns.
+    pub settle_end_ns: u64,
+    /// Step end (after any frames), ns.
+    pub t_end_ns: u64,
+}
+
+impl StepRow {
+    pub(super) fn example() -> Self {
+        Self {
+            step: 0,
+            trial: 0,
+            label: String::new(),
+            phase: String::new(),
+            axis: String::new(),
+            target: None,
+            position: None,
+            unit: String::new(),
+            fx_n: None,
+            fy_n: None,
+            fz_n: None,
+            tx_nmm: None,
+            ty_nmm: None,
+            tz_nmm: None,
+            settle_s: 0.0,
+            settle_verdict: String::new(),
+            force_window_s: 0.0,
+            window_samples: 0,
+            window_std: None,
+            saturated: false,
+            frames: 0,
+            position_abs: None,
+            t_start_ns: 0,
+            settle_end_ns: 0,
+            t_end_ns: 0,
+        }
+    }
+}
+
+pub(super) fn round6(v: f64) -> f64 {
+    (v * 1e6).round() / 1e6
+}
+
+#[derive(Serialize)]
+pub(super) struct ForceRow {
+    pub(super) t_ns: u64,
+    pub(super) step: u32,
+    pub(super) trial: u32,
+    pub(super) fx_n: f64,
+    pub(super) fy_n: f64,
+    pub(super) fz_n: f64,
+    pub(super) tx_nmm: f64,
+    pub(super) ty_nmm: f64,
+    pub(super) tz_nmm: f64,
+    pub(super) ft_seq: u64,
+    pub(super) status: u32,
+}
+
+#[derive(Serialize)]
+pub(super) struct AxesRow<'a> {
+    pub(super) t_ns: u64,
+    pub(super) axis: &'a str,
+    pub(super) target: Option<f64>,
+    pub(super) position: f64,
+}
+
+#[derive(Serialize)]
+pub(super) struct MarkerTruthRow {
+    pub(super) frame: u64,
+    pub(super) id: usize,
+    pub(super) x_px: f64,
+    pub(super) y_px: f64,
+}
+
+#[derive(Serialize)]
+pub(super) struct SimStepRow {
+    pub(super) step: u32,
+    pub(super) trial: u32,
+    pub(super) depth_mm: f64,
+    pub(super) fx_n: f64,
+    pub(super) fy_n: f64,
+    pub(super) fz_n: f64,
+    pub(super) tz_nmm: f64,
+    pub(super) fx_eq_n: f64,
+    pub(super) fz_eq_n: f64,
+    pub(super) tz_eq_nmm: f64,
+    pub(super) contact_radius_mm: f64,
+    pub(super) shear_stick_fraction: Option<f64>,
+    pub(super) twist_stick_fraction: Option<f64>,
+    pub(super) shear_slips: u32,
+    pub(super) twist_slips: u32,
+    pub(super) object_slips: u32,
+}
+
+#[derive(Serialize)]
+pub(super) struct FrameRow<'a> {
+    pub(super) frame: u64,
+    pub(super) t_ns: u64,
+    pub(super) step: u32,
+    pub(super) trial: u32,
+    pub(super) file: &'a str,
+    pub(super) seq: u64,
+}

@@ -1,0 +1,356 @@
+//! The blocks of a protocol as the plan task runs them: home, tare, approach, and the step
+//! (move, disturb, settle, quasistatic window, frames, row).
+
+use rig::config::AxisRole;
+use rig::units::fmt_value;
+use rig::{RigError, Wrench};
+use serde_json::json;
+
+use super::Stop;
+use super::exec::Exec;
+use super::settle::SettleTrack;
+use super::wait::Until;
+use crate::protocol::compile::{ApproachSpec, DisturbSpec, SettleSpec, Step, Target};
+use crate::protocol::schema::{Channel, OnTimeout};
+use crate::record::StepRow;
+
+impl Exec<'_> {
+    pub(super) async fn home(&mut self, axes: &[AxisRole]) -> Result<(), Stop> {
+        self.what = format!(
+            "home {}",
+            axes.iter().map(|a| a.name()).collect::<Vec<_>>().join(", ")
+        );
+        self.set_phase("homing");
+        self.home_axes(axes).await?;
+        for a in axes {
+            if let Some(ax) = self.rig.axes.get_mut(a) {
+                let st = ax.status().await?;
+                if !st.referenced {
+                    return Err(Stop::Device(RigError::Garbled {
+                        device: format!("{a} axis"),
+                        detail: "homing finished but the axis reports no reference".into(),
+                    }));
+                }
+                self.targets.insert(*a, st.position);
+            }
+        }
+        let t = self.now();
+        self.rec.journal(t, "home", json!({ "axes": axes }), true)?;
+        Ok(())
+    }
+
+    pub(super) async fn tare(&mut self, duration_s: f64) -> Result<(), Stop> {
+        self.what = "tare".into();
+        self.set_phase("taring");
+        let start = self.now();
+        self.keep_ns = self.keep_ns.max((duration_s * 1e9) as u64);
+        let end = start + (duration_s * 1e9) as u64;
+        self.wait(&mut Until::Time(end)).await?;
+        let mean = Wrench::mean(
+            self.window
+                .iter()
+                .filter(|(t, _, _)| *t >= start)
+                .map(|(_, w, _)| *w),
+        );
+        self.tare = Wrench::from_array(
+            self.tare
+                .as_array()
+                .iter()
+                .zip(mean.as_array())
+                .map(|(a, b)| a + b)
+                .collect::<Vec<_>>()
+                .try_into()
+                .unwrap_or([0.0; 6]),
+        );
+        // Samples already in the window were taken against the old offset.
+        for (_, w, _) in self.window.iter_mut() {
+            *w = w.minus(&mean);
+        }
+        if let Some(m) = &self.monitor {
+            m.set_tare(self.tare);
+        }
+        let tare = self.tare.as_array();
+        self.rec.update_manifest(|m| m.tare = Some(tare))?;
+        let t = self.now();
+        self.rec
+            .journal(t, "tare", json!({ "offset": tare }), true)?;
+        self.progress.note(&format!(
+            "tare: offset Fx {:.4} Fy {:.4} Fz {:.4} N, Tz {:.4} N·mm",
+            tare[0], tare[1], tare[2], tare[5]
+        ));
+        Ok(())
+    }
+
+    pub(super) async fn approach(&mut self, a: &ApproachSpec) -> Result<(), Stop> {
+        let ApproachSpec {
+            axis,
+            from,
+            speed,
+            until_n,
+            max_travel,
+            reference_frames,
+        } = *a;
+        self.what = format!("approach {axis}");
+        if reference_frames > 0 {
+            self.set_phase("reference frames");
+            self.wait(&mut Until::Frames(reference_frames)).await?;
+        }
+        if let Some(f) = from {
+            self.set_phase("moving to start");
+            let max_speed = self
+                .rig
+                .axes
+                .get(&axis)
+                .map(|a| a.info().max_speed)
+                .unwrap_or(speed);
+            self.move_axis(axis, f, max_speed).await?;
+        }
+        let start = self.position(axis).await?;
+        self.set_phase("creeping to contact");
+        let Some(ax) = self.rig.axes.get_mut(&axis) else {
+            return Ok(());
+        };
+        let unit = ax.info().unit.symbol();
+        ax.move_to(start + max_travel, speed).await?;
+        self.targets.insert(axis, start + max_travel);
+        let channel = Channel::along(axis);
+        let what = format!(
+            "an approach creeping {} {unit} from {} {unit} at {} {unit}/s",
+            fmt_value(max_travel),
+            fmt_value((start * 1e6).round() / 1e6),
+            fmt_value(speed)
+        );
+        let deadline = self.deadline_for(axis, max_travel, speed, what);
+        self.wait(&mut Until::Contact {
+            channel,
+            threshold: until_n,
+            deadline,
+        })
+        .await?;
+        if let Some(ax) = self.rig.axes.get_mut(&axis) {
+            ax.stop().await?;
+        }
+        let what = "stopping at contact".to_string();
+        let deadline = self.deadline_for(axis, 0.0, speed, what);
+        self.wait(&mut Until::Motion(vec![deadline])).await?;
+        let contact = self.position(axis).await?;
+        self.origin.insert(axis, contact);
+        self.targets.insert(axis, contact);
+        let force = self.latest.map(|(_, w)| channel.of(&w)).unwrap_or(0.0);
+        self.rec.update_manifest(|m| {
+            m.origins.insert(axis.to_string(), contact);
+        })?;
+        let t = self.now();
+        self.rec.journal(
+            t,
+            "contact",
+            json!({ "axis": axis, "position": contact, "force": force }),
+            true,
+        )?;
+        self.progress.note(&format!(
+            "contact: {axis} axis at {} (|{}| = {:.3})",
+            fmt_value(contact),
+            channel.name(),
+            force.abs()
+        ));
+        Ok(())
+    }
+
+    pub(super) async fn step(&mut self, s: &Step) -> Result<(), Stop> {
+        self.step = s.step;
+        if let Some(m) = &self.monitor {
+            m.set_step(s.step);
+        }
+        self.step_saturated = false;
+        let t_start = self.now();
+        let unit = s.unit.map(|u| u.symbol()).unwrap_or("");
+        self.what = match (s.axis, s.target) {
+            (Some(a), Some(Target::To(v))) => {
+                format!("{} {a} → {} {unit}", s.phase.name(), fmt_value(v))
+            }
+            (Some(a), Some(Target::By(v))) => {
+                format!("{} {a} by {} {unit}", s.phase.name(), fmt_value(v))
+            }
+            _ => s.label.clone(),
+        };
+        let settle_window_ns = match s.settle {
+            SettleSpec::Rate { window_s, .. } => (window_s * 1e9) as u64,
+            _ => 0,
+        };
+        self.keep_ns = ((s.force_window_s * 1e9) as u64).max(settle_window_ns) + 1_000_000_000;
+        self.rec.journal(
+            t_start,
+            "step_start",
+            json!({ "step": s.step, "phase": s.phase.name(), "what": self.what }),
+            false,
+        )?;
+        if let (Some(axis), Some(target)) = (s.axis, s.target) {
+            self.set_phase("moving");
+            let origin = self.origin.get(&axis).copied().unwrap_or(0.0);
+            let abs = match target {
+                Target::To(v) => origin + v,
+                Target::By(v) => self.position(axis).await? + v,
+            };
+            self.move_axis(axis, abs, s.speed).await?;
+        }
+        if let Some(DisturbSpec {
+            force_y_n,
+            torque_z_nmm,
+            frequency_hz,
+            duration_s,
+        }) = s.disturb
+            && let Some(d) = self.rig.disturber.as_mut()
+        {
+            d.apply(force_y_n, torque_z_nmm, frequency_hz, duration_s)
+                .await?;
+        }
+        let settle_start = self.now();
+        let verdict = match s.settle {
+            SettleSpec::None => "none",
+            SettleSpec::Fixed { s: secs } => {
+                self.set_phase(if s.disturb.is_some() {
+                    "disturbing"
+                } else {
+                    "settling"
+                });
+                self.wait(&mut Until::Time(settle_start + (secs * 1e9) as u64))
+                    .await?;
+                "fixed"
+            }
+            SettleSpec::Rate {
+                channel,
+                below,
+                window_s,
+                min_s,
+                max_s,
+                on_timeout,
+            } => {
+                self.set_phase("settling");
+                let mut track = Until::Settle(SettleTrack {
+                    channel,
+                    below,
+                    window_ns: (window_s * 1e9) as u64,
+                    start_ns: settle_start,
+                    min_ns: (min_s * 1e9) as u64,
+                    max_ns: (max_s * 1e9) as u64,
+                    verdict: None,
+                });
+                self.wait(&mut track).await?;
+                let verdict = match track {
+                    Until::Settle(t) => t.verdict.unwrap_or("converged"),
+                    _ => "converged",
+                };
+                if verdict == "timeout" {
+                    let msg = format!(
+                        "step {}: |d{}/dt| stayed above {} for the whole {} s settle",
+                        s.step,
+                        channel.name(),
+                        fmt_value(below),
+                        fmt_value(max_s)
+                    );
+                    if on_timeout == OnTimeout::Abort {
+                        return Err(Stop::SettleTimeout(msg));
+                    }
+                    self.progress.note(&format!("warning: {msg}"));
+                    self.rec.update_manifest(|m| m.warnings.push(msg))?;
+                }
+                verdict
+            }
+        };
+        let settle_end = self.now();
+        let settle_s = (settle_end - settle_start) as f64 * 1e-9;
+        // Quasistatic value: mean over the last window (thesis §4.3), or the last sample.
+        let t_end_window = self.now();
+        let from = t_end_window.saturating_sub((s.force_window_s * 1e9) as u64);
+        let in_window: Vec<Wrench> = if s.force_window_s > 0.0 {
+            self.window
+                .iter()
+                .filter(|(t, _, _)| *t >= from)
+                .map(|(_, w, _)| *w)
+                .collect()
+        } else {
+            self.window.back().map(|(_, w, _)| *w).into_iter().collect()
+        };
+        let mean = (!in_window.is_empty()).then(|| Wrench::mean(in_window.iter().copied()));
+        let channel = s.axis.map(Channel::along).unwrap_or(Channel::Fz);
+        let std = mean.map(|m| {
+            let c = channel.of(&m);
+            (in_window
+                .iter()
+                .map(|w| (channel.of(w) - c).powi(2))
+                .sum::<f64>()
+                / in_window.len().max(1) as f64)
+                .sqrt()
+        });
+        if s.frames > 0 {
+            self.set_phase("capturing frames");
+            self.wait(&mut Until::Frames(s.frames)).await?;
+        }
+        let (position_abs, position) = match s.axis {
+            Some(a) => {
+                let p = self.position(a).await?;
+                (
+                    Some(p),
+                    Some(p - self.origin.get(&a).copied().unwrap_or(0.0)),
+                )
+            }
+            None => (None, None),
+        };
+        let round = |v: f64| (v * 1e6).round() / 1e6 + 0.0;
+        let row = StepRow {
+            step: s.step,
+            trial: self.trial,
+            label: s.label.clone(),
+            phase: s.phase.name().into(),
+            axis: s.axis.map(|a| a.name().to_string()).unwrap_or_default(),
+            target: match s.target {
+                Some(Target::To(v)) => Some(round(v)),
+                Some(Target::By(_)) => position.map(round),
+                None => None,
+            },
+            position: position.map(round),
+            unit: unit.into(),
+            fx_n: mean.map(|m| round(m.fx_n)),
+            fy_n: mean.map(|m| round(m.fy_n)),
+            fz_n: mean.map(|m| round(m.fz_n)),
+            tx_nmm: mean.map(|m| round(m.tx_nmm)),
+            ty_nmm: mean.map(|m| round(m.ty_nmm)),
+            tz_nmm: mean.map(|m| round(m.tz_nmm)),
+            settle_s: round(settle_s),
+            settle_verdict: verdict.into(),
+            force_window_s: s.force_window_s,
+            window_samples: in_window.len() as u32,
+            window_std: std.map(round),
+            saturated: self.step_saturated,
+            frames: s.frames,
+            position_abs: position_abs.map(round),
+            t_start_ns: t_start,
+            settle_end_ns: settle_end,
+            t_end_ns: self.now(),
+        };
+        self.rec.step(&row)?;
+        if let Some(m) = &self.monitor
+            && let Some(truth) = m.truth().await
+        {
+            self.rec.sim_truth(s.step, self.trial, &truth)?;
+        }
+        let steps_done = row.step;
+        self.rec
+            .update_manifest(|m| m.steps_completed = steps_done)?;
+        let t = self.now();
+        self.rec.journal(t, "step_end", json!(row), true)?;
+        let summary = match mean {
+            Some(m) => format!(
+                "{}: Fz {:.3} N, Fx {:.3} N, Tz {:.3} N·mm; settled {:.0} s ({verdict})",
+                self.what, m.fz_n, m.fx_n, m.tz_nmm, settle_s
+            ),
+            None => format!("{}: settled {:.0} s ({verdict})", self.what, settle_s),
+        };
+        self.progress.step_done(s.step, &summary);
+        self.step = 0;
+        if let Some(m) = &self.monitor {
+            m.set_step(0);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,231 @@
+//! The plan task's one waiting loop: it services the axes and frame streams, takes the
+//! watchdog's readings, and returns when what it waits for has happened — or fails when a
+//! deadline passes, the watchdog trips, or the operator interrupts.
+
+use rig::config::AxisRole;
+use rig::units::fmt_value;
+
+use super::exec::Exec;
+use super::settle::SettleTrack;
+use super::{Stop, watchdog::Monitor};
+use crate::protocol::schema::Channel;
+
+/// An axis that must come to rest by a deadline.
+pub(super) struct Deadline {
+    pub(super) axis: AxisRole,
+    pub(super) by_ns: u64,
+    /// How long it was given, s.
+    pub(super) allowed_s: f64,
+    /// What it was doing, for the error ("a move from 9 to 10 mm at 2 mm/s").
+    pub(super) what: String,
+}
+
+/// What [`Exec::wait`] waits for.
+pub(super) enum Until {
+    /// These axes have stopped, each by its deadline.
+    Motion(Vec<Deadline>),
+    /// The clock reaches this time.
+    Time(u64),
+    /// The settle criterion holds (or times out).
+    Settle(SettleTrack),
+    /// This many more frames have been captured.
+    Frames(u32),
+    /// |force along `channel`| reaches `threshold` while the axis of `deadline` moves.
+    Contact {
+        channel: Channel,
+        threshold: f64,
+        deadline: Deadline,
+    },
+}
+
+/// Resolves when the watchdog has something new; never without a watchdog.
+async fn watchdog_news(m: Option<&Monitor>) {
+    match m {
+        Some(m) => m.notified().await,
+        None => std::future::pending().await,
+    }
+}
+
+impl Exec<'_> {
+    /// Waits for `until`, servicing every due schedule meanwhile.
+    pub(super) async fn wait(&mut self, until: &mut Until) -> Result<(), Stop> {
+        let mut next_poll: u64 = self.now();
+        let mut frames_due: Option<u64> = None;
+        loop {
+            self.check_stop()?;
+            let fresh = self.drain()?;
+            let now = self.now();
+            if let (Some(t), Some(hz)) = (self.next_axes, self.active.axes_hz)
+                && now >= t
+            {
+                self.record_axes(now).await?;
+                let p = super::period_ns(hz);
+                self.next_axes = Some(if t + p <= now { now + p } else { t + p });
+            }
+            if let (Some(t), Some(hz)) = (self.next_frame_stream, self.active.frames_hz)
+                && now >= t
+            {
+                self.capture_frame().await?;
+                let p = super::period_ns(hz);
+                let now = self.now();
+                self.next_frame_stream = Some(if t + p <= now { now + p } else { t + p });
+            }
+            let deadline: u64;
+            match until {
+                Until::Time(t) => {
+                    if now >= *t {
+                        return Ok(());
+                    }
+                    deadline = *t;
+                }
+                Until::Motion(watch) => {
+                    if now >= next_poll {
+                        let axes: Vec<AxisRole> = watch.iter().map(|d| d.axis).collect();
+                        if self.all_stopped(&axes).await? {
+                            return Ok(());
+                        }
+                        if let Some(late) = watch.iter().find(|d| now >= d.by_ns) {
+                            return Err(self.stuck(late).await);
+                        }
+                        next_poll = now
+                            + axes
+                                .iter()
+                                .map(|a| self.poll_ns(*a))
+                                .min()
+                                .unwrap_or(50_000_000);
+                    }
+                    let by = watch.iter().map(|d| d.by_ns).min().unwrap_or(next_poll);
+                    deadline = next_poll.min(by.max(now + 1));
+                }
+                Until::Settle(track) => {
+                    let elapsed = now.saturating_sub(track.start_ns);
+                    if elapsed >= track.max_ns {
+                        track.verdict = Some("timeout");
+                        return Ok(());
+                    }
+                    if fresh
+                        && elapsed >= track.min_ns
+                        && elapsed >= track.window_ns
+                        && track
+                            .drift_bound(&self.window, now)
+                            .is_some_and(|b| b < track.below)
+                    {
+                        track.verdict = Some("converged");
+                        return Ok(());
+                    }
+                    deadline = track.start_ns + track.max_ns;
+                }
+                Until::Frames(n) => {
+                    if *n == 0 {
+                        return Ok(());
+                    }
+                    let due = *frames_due.get_or_insert(now);
+                    if now >= due {
+                        self.capture_frame().await?;
+                        *n -= 1;
+                        frames_due = Some(self.now());
+                        if *n == 0 {
+                            return Ok(());
+                        }
+                        continue;
+                    }
+                    deadline = due;
+                }
+                Until::Contact {
+                    channel,
+                    threshold,
+                    deadline: by,
+                } => {
+                    if fresh
+                        && let Some((_, w)) = self.latest
+                        && channel.of(&w).abs() >= *threshold
+                    {
+                        return Ok(());
+                    }
+                    let axis = by.axis;
+                    if now >= next_poll {
+                        if self.all_stopped(&[axis]).await? {
+                            return Err(Stop::NoContact(format!(
+                                "the {axis} axis reached the end of the approach without |{}| reaching {} {}",
+                                channel.name(),
+                                fmt_value(*threshold),
+                                if channel.is_torque() { "N·mm" } else { "N" }
+                            )));
+                        }
+                        if now >= by.by_ns {
+                            return Err(self.stuck(by).await);
+                        }
+                        next_poll = now + self.poll_ns(axis);
+                    }
+                    deadline = next_poll.min(by.by_ns.max(now + 1));
+                }
+            }
+            let next = [Some(deadline), self.next_axes, self.next_frame_stream]
+                .into_iter()
+                .flatten()
+                .min()
+                .unwrap_or(deadline);
+            let tick_t = self.t_s();
+            self.progress
+                .tick(self.step, &self.what, self.phase, tick_t);
+            if next > now {
+                let seen = self.cancel.count();
+                let cancel = self.cancel.clone();
+                tokio::select! {
+                    _ = self.clock.sleep_until_ns(next) => {}
+                    _ = watchdog_news(self.monitor.as_ref()) => {}
+                    _ = cancel.interrupted(seen) => {}
+                }
+            } else {
+                tokio::task::yield_now().await;
+            }
+        }
+    }
+
+    pub(super) fn poll_ns(&self, axis: AxisRole) -> u64 {
+        self.poll_period_ns
+            .get(&axis)
+            .copied()
+            .unwrap_or(50_000_000)
+    }
+
+    pub(super) async fn all_stopped(&mut self, axes: &[AxisRole]) -> Result<bool, Stop> {
+        for a in axes {
+            if let Some(ax) = self.rig.axes.get_mut(a)
+                && ax.status().await?.moving
+            {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+
+    /// An axis still moving past its deadline: stop it, and say where it was.
+    async fn stuck(&mut self, d: &Deadline) -> Stop {
+        let axis = d.axis;
+        let mut detail = String::new();
+        if let Some(ax) = self.rig.axes.get_mut(&axis) {
+            let unit = ax.info().unit.symbol();
+            if let Err(e) = ax.stop().await {
+                detail.push_str(&format!("; stopping it failed too: {e}"));
+            }
+            match ax.status().await {
+                Ok(st) => detail.insert_str(
+                    0,
+                    &format!(
+                        "; it reads {} {unit}{}",
+                        fmt_value((st.position * 1e6).round() / 1e6),
+                        if st.moving { " and still busy" } else { "" }
+                    ),
+                ),
+                Err(e) => detail.push_str(&format!("; reading it failed: {e}")),
+            }
+        }
+        Stop::Stuck(format!(
+            "the {axis} axis did not come to rest within {} s ({}){detail}; it was stopped; \
+             fix: check the stage for a jam, a stalled motor or a limit switch, then run `gelrig probe`",
+            fmt_value((d.allowed_s * 10.0).round() / 10.0),
+            d.what,
+        ))
+    }
+}

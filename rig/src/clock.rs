@@ -71,10 +71,18 @@ impl Clock {
         self.origin_ns + elapsed as u64
     }
 
-    /// Sleeps until the clock reads `t_ns` (returns at once if it already does).
+    /// Sleeps until the clock reads `t_ns` (returns at once if it already does). A wait
+    /// longer than a year of wall time is cut to a year: nothing a run waits for is that far
+    /// away, and an `Instant` that far out could overflow; the caller's loop wakes and waits
+    /// again.
     pub async fn sleep_until_ns(&self, t_ns: u64) {
-        let ahead_ns = t_ns.saturating_sub(self.origin_ns) as f64 / self.scale;
-        let deadline = self.origin + Duration::from_nanos(ahead_ns.ceil() as u64);
+        const YEAR_NS: f64 = 365.0 * 86_400.0 * 1e9;
+        let ahead_ns = (t_ns.saturating_sub(self.origin_ns) as f64 / self.scale)
+            .min(self.origin.elapsed().as_nanos() as f64 + YEAR_NS);
+        let deadline = self
+            .origin
+            .checked_add(Duration::from_nanos(ahead_ns.ceil() as u64))
+            .unwrap_or_else(|| Instant::now() + Duration::from_secs(86_400));
         tokio::time::sleep_until(deadline).await;
     }
 

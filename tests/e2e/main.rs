@@ -5,6 +5,7 @@
 #![allow(clippy::unwrap_used)]
 
 mod dry_run;
+mod faults;
 mod physics;
 mod plan;
 mod report;

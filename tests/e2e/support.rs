@@ -43,10 +43,14 @@ pub(crate) const SHIPPED: [&str; 10] = [
 ];
 
 /// Path of the `gelrig` binary of this build profile, built (or brought up to date) once
-/// per test process so the tests never run a stale binary.
+/// per test process so the tests never run a stale binary. `GELRIG_BIN` names another
+/// binary instead (an installed one, or an older build to show a test fails there).
 pub(crate) fn gelrig() -> PathBuf {
     static BIN: OnceLock<PathBuf> = OnceLock::new();
     BIN.get_or_init(|| {
+        if let Some(bin) = std::env::var_os("GELRIG_BIN") {
+            return PathBuf::from(bin);
+        }
         let exe = std::env::current_exe().unwrap();
         // target/<profile>/deps/e2e-… → target/<profile>
         let profile_dir = exe.parent().unwrap().parent().unwrap().to_path_buf();

@@ -346,6 +346,7 @@ fn trip_record(t: &watchdog::Trip) -> serde_json::Value {
         "t_detect_ns": t.t_detect_ns,
         "t_stop_sent_ns": t.t_stop_sent_ns,
         "detect_to_stop_wall_us": (t.detect_to_stop_wall_us * 10.0).round() / 10.0,
+        "reading": t.reading.map(|w| w.as_array().map(|v| (v * 1e6).round() / 1e6)),
         "stop_errors": t.stop_errors,
     })
 }

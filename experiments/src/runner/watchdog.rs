@@ -16,9 +16,9 @@
 //! On either, it stops every axis at once through each axis's [`AxisStopper`] — pressing
 //! axes first — without waiting for the plan task, records the trip with its timing
 //! (sample, detection, last stop sent), and wakes the plan task, which retracts the
-//! pressing axes through its normal exit. Until the plan has begun that retract the stop is
-//! repeated on the next monitor ticks, so a move the plan had in flight when the trip
-//! happened cannot outlive it (orchestration spec, "a safety envelope checked twice").
+//! pressing axes through its normal exit — whose first act is to stop every axis again, so
+//! a move the plan had in flight when the trip happened cannot outlive the plan's call
+//! (orchestration spec, "a safety envelope checked twice").
 //!
 //! Readings go to the plan task through a bounded queue; the plan tares, windows and
 //! records them. The watchdog judges limits on the same tare, which the plan hands it.
@@ -36,9 +36,6 @@ use tokio::sync::Notify;
 /// The plan task drains the queue at every wake-up and every driver call it makes has a
 /// deadline, so reaching this means the plan task is stuck, not busy.
 const QUEUE_CAP: usize = 600_000;
-
-/// Times the stop is sent again after a trip while the plan task has not yet taken over.
-const STOP_REPEATS: u32 = 3;
 
 /// The safety limits of the protocol, on tared values.
 #[derive(Debug, Clone, Copy)]
@@ -113,6 +110,8 @@ pub(crate) struct Trip {
     /// Wall time from the judgement to the last stop sent, µs: the part of the trip latency
     /// that is gelrig's own (the sampling period bounds the rest).
     pub(crate) detect_to_stop_wall_us: f64,
+    /// The tared reading that tripped it (`None` for a sensor fault without a reading).
+    pub(crate) reading: Option<Wrench>,
     /// Stops that could not be sent.
     pub(crate) stop_errors: Vec<String>,
     /// Every stop has been sent (the timing above is final).
@@ -127,8 +126,6 @@ struct State {
     tare: Wrench,
     /// Limits and faults are judged (off once tripped and during the final retract).
     armed: bool,
-    /// The plan task has begun its retract: no more repeated stops.
-    retracting: bool,
     step: u32,
     trip: Option<Trip>,
     /// Sensor errors after the monitor was disarmed (kept for the journal).
@@ -177,7 +174,6 @@ impl Monitor {
             stream_epoch: 0,
             tare: Wrench::default(),
             armed: true,
-            retracting: false,
             step: 0,
             trip: None,
             late_errors: Vec::new(),
@@ -242,9 +238,7 @@ impl Monitor {
     /// The plan task is retracting: limits and faults are no longer judged (the retract is
     /// the response to them), readings keep coming for the record.
     pub(crate) fn begin_retract(&self) {
-        let mut s = lock(&self.state);
-        s.armed = false;
-        s.retracting = true;
+        lock(&self.state).armed = false;
     }
 
     /// The trip, if the watchdog tripped.
@@ -314,7 +308,6 @@ impl Watch {
         let mut next_monitor = self.clock.now_ns();
         let mut next_stream: Option<u64> = None;
         let mut epoch = u64::MAX;
-        let mut stop_repeats = 0u32;
         let mut last_good_ns: Option<u64> = None;
         loop {
             let (stream_hz, e, quit) = {
@@ -328,6 +321,11 @@ impl Watch {
             if e != epoch {
                 epoch = e;
                 next_stream = stream_hz.map(|_| now);
+                // One phase for both schedules: at equal (or multiple) rates they read
+                // together instead of interleaving at twice the rate.
+                if stream_hz.is_some() {
+                    next_monitor = now;
+                }
             }
             let stream_due = next_stream.is_some_and(|t| now >= t);
             let monitor_due = now >= next_monitor;
@@ -345,7 +343,10 @@ impl Watch {
                             record: stream_due,
                         });
                         if let Some((kind, msg)) = verdict {
-                            self.trip(kind, msg, s.t_ns, now).await;
+                            let tare = lock(&self.state).tare;
+                            let reading = Some(s.wrench.minus(&tare))
+                                .filter(|w| w.as_array().iter().all(|v| v.is_finite()));
+                            self.trip(kind, msg, s.t_ns, now, reading).await;
                         }
                     }
                     Outcome::Error(msg) => {
@@ -374,16 +375,6 @@ impl Watch {
                     } else {
                         next_monitor + p
                     };
-                    // A trip whose stop may have crossed a move the plan had in flight:
-                    // stop again until the plan task has taken over.
-                    let repeat = {
-                        let s = lock(&self.state);
-                        s.trip.is_some() && !s.retracting
-                    };
-                    if repeat && stop_repeats < STOP_REPEATS {
-                        stop_repeats += 1;
-                        self.send_stops().await;
-                    }
                 }
             }
             let next = [Some(next_monitor), next_stream]
@@ -418,7 +409,8 @@ impl Watch {
     async fn fault(&self, msg: String, t_sample_ns: u64, now: u64) {
         let armed = lock(&self.state).armed;
         if armed {
-            self.trip(TripKind::Sensor, msg, t_sample_ns, now).await;
+            self.trip(TripKind::Sensor, msg, t_sample_ns, now, None)
+                .await;
         } else {
             let mut s = lock(&self.state);
             if s.late_errors.len() < 20 {
@@ -504,7 +496,14 @@ impl Watch {
     }
 
     /// Stops every axis, records the trip and disarms.
-    async fn trip(&self, kind: TripKind, message: String, t_sample_ns: u64, t_detect_ns: u64) {
+    async fn trip(
+        &self,
+        kind: TripKind,
+        message: String,
+        t_sample_ns: u64,
+        t_detect_ns: u64,
+        reading: Option<Wrench>,
+    ) {
         {
             let mut s = lock(&self.state);
             if s.trip.is_some() || !s.armed {
@@ -519,6 +518,7 @@ impl Watch {
                 t_detect_ns,
                 t_stop_sent_ns: t_detect_ns,
                 detect_to_stop_wall_us: 0.0,
+                reading,
                 stop_errors: Vec::new(),
                 stops_sent: false,
             });

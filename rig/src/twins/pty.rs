@@ -77,6 +77,12 @@ impl PtyTwin {
     pub fn transcript(&self) -> Vec<String> {
         lock(&self.transcript).clone()
     }
+
+    /// A handle that reads the transcript from another thread.
+    pub fn transcript_probe(&self) -> impl Fn() -> Vec<String> + Send + 'static {
+        let t = self.transcript.clone();
+        move || lock(&t).clone()
+    }
 }
 
 /// A new pseudo-terminal: the master side a twin serves, and the slave's path that the

@@ -106,6 +106,11 @@ impl ZaberTwin {
         self.pty.faults()
     }
 
+    /// A handle that reads the transcript from another thread.
+    pub fn transcript_probe(&self) -> impl Fn() -> Vec<String> + Send + 'static {
+        self.pty.transcript_probe()
+    }
+
     /// Every line received and sent, for test diagnostics.
     pub fn transcript(&self) -> Vec<String> {
         self.pty.transcript()

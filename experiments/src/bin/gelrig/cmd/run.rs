@@ -47,28 +47,12 @@ impl Cmd {
             Err(code) => return Ok(code),
         };
         let real = loaded.real_devices();
-        let clock = match (&loaded.rig.twins, self.time_scale.as_deref()) {
-            // The twins of `gelrig sim serve` keep their own time: the run must match it.
-            (Some(t), None) => ClockMode::Scaled {
-                scale: t.time_scale,
-            },
-            (Some(t), Some(s)) => match parse_scale(s)? {
-                ClockMode::Scaled { scale } if scale == t.time_scale => ClockMode::Scaled { scale },
-                _ => anyhow::bail!(
-                    "--time-scale {s}: the rig's twins run at {}× (`twins:` in {}); \
-                     drop --time-scale or restart `gelrig sim serve` with it",
-                    t.time_scale,
-                    loaded.rig_path.display()
-                ),
-            },
-            (None, s) if real.is_empty() => parse_scale(s.unwrap_or("virtual"))?,
-            (None, Some(s)) => anyhow::bail!(
-                "--time-scale {s}: this run drives real devices ({}) on rig `{}`, which run in real time; drop --time-scale",
-                real.join(", "),
-                loaded.rig.name
-            ),
-            // Any real device puts the whole run, simulated devices included, in real time.
-            (None, None) => ClockMode::Monotonic,
+        let clock = match self.clock(&loaded, &real) {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Ok(ExitCode::from(super::EXIT_INVALID));
+            }
         };
         let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
         let mode = if self.quiet {
@@ -122,6 +106,38 @@ impl Cmd {
             Status::Aborted if cancel.count() > 0 => ExitCode::from(130),
             Status::Aborted => ExitCode::from(3),
             Status::Failed | Status::Running => ExitCode::from(1),
+        })
+    }
+
+    /// The run's clock: the twins' scale, virtual or `--time-scale` on a simulated rig,
+    /// real time as soon as any real device is opened.
+    fn clock(
+        &self,
+        loaded: &experiments::protocol::Loaded,
+        real: &[String],
+    ) -> anyhow::Result<ClockMode> {
+        Ok(match (&loaded.rig.twins, self.time_scale.as_deref()) {
+            // The twins of `gelrig sim serve` keep their own time: the run must match it.
+            (Some(t), None) => ClockMode::Scaled {
+                scale: t.time_scale,
+            },
+            (Some(t), Some(s)) => match parse_scale(s)? {
+                ClockMode::Scaled { scale } if scale == t.time_scale => ClockMode::Scaled { scale },
+                _ => anyhow::bail!(
+                    "--time-scale {s}: the rig's twins run at {}× (`twins:` in {}); \
+                     drop --time-scale or restart `gelrig sim serve` with it",
+                    t.time_scale,
+                    loaded.rig_path.display()
+                ),
+            },
+            (None, s) if real.is_empty() => parse_scale(s.unwrap_or("virtual"))?,
+            (None, Some(s)) => anyhow::bail!(
+                "--time-scale {s}: this run drives real devices ({}) on rig `{}`, which run in real time; drop --time-scale",
+                real.join(", "),
+                loaded.rig.name
+            ),
+            // Any real device puts the whole run, simulated devices included, in real time.
+            (None, None) => ClockMode::Monotonic,
         })
     }
 }
@@ -179,12 +195,16 @@ fn parse_scale(s: &str) -> anyhow::Result<ClockMode> {
     if s == "virtual" {
         return Ok(ClockMode::Virtual);
     }
+    // Below 1/100 a step's settle would take days of wall time; above 10⁵ the wall's
+    // millisecond timer is a hundred seconds of run time and nothing can be timed.
     let scale: f64 = s
         .parse()
         .ok()
-        .filter(|v: &f64| *v > 0.0 && v.is_finite())
+        .filter(|v: &f64| (0.01..=1e5).contains(v))
         .with_context(|| {
-            format!("--time-scale `{s}`: write `virtual` or a positive number, e.g. 60")
+            format!(
+                "--time-scale `{s}`: write `virtual` or a speed-up between 0.01 and 100000, e.g. 60"
+            )
         })?;
     Ok(ClockMode::Scaled { scale })
 }

@@ -69,19 +69,38 @@ impl Appender {
     }
 }
 
+/// The memory a row is encoded into before it is appended: shared between the CSV
+/// encoder, which owns one handle, and the file, which drains it after each row.
+#[derive(Clone, Default)]
+struct Staging(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+
+impl Write for Staging {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        rig::lock(&self.0).extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
 /// A CSV file of rows of one type, each written whole.
 pub(super) struct CsvFile {
     out: Appender,
-    /// Whether the header went out (it is written with the first row).
-    header_written: bool,
+    /// One encoder for the file's life (it writes the header before the first row).
+    encoder: csv::Writer<Staging>,
+    staged: Staging,
 }
 
 impl CsvFile {
     /// A new file; its header is written with the first row.
     pub(super) fn create(path: PathBuf) -> Result<Self, RecordError> {
+        let staged = Staging::default();
         Ok(Self {
             out: Appender::create(path)?,
-            header_written: false,
+            encoder: csv::Writer::from_writer(staged.clone()),
+            staged,
         })
     }
 
@@ -105,19 +124,15 @@ impl CsvFile {
 
     /// One row in memory, with the header before the first.
     fn encode<T: serde::Serialize>(&mut self, row: &T) -> Result<Vec<u8>, RecordError> {
-        let path = self.out.path().to_path_buf();
-        let mut w = csv::WriterBuilder::new()
-            .has_headers(!self.header_written)
-            .from_writer(Vec::new());
-        w.serialize(row).map_err(|source| RecordError::Csv {
-            path: path.clone(),
-            source,
-        })?;
-        let bytes = w
-            .into_inner()
-            .map_err(|e| io(&path)(std::io::Error::other(e.to_string())))?;
-        self.header_written = true;
-        Ok(bytes)
+        let path = self.out.path();
+        self.encoder
+            .serialize(row)
+            .map_err(|source| RecordError::Csv {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        self.encoder.flush().map_err(io(path))?;
+        Ok(std::mem::take(&mut *rig::lock(&self.staged.0)))
     }
 
     /// Writes one row through to the OS, whole or not at all.

@@ -38,11 +38,25 @@ pub(super) enum Until {
     },
 }
 
-/// Resolves when the watchdog has something new; never without a watchdog.
-async fn watchdog_news(m: Option<&Monitor>) {
+/// Readings are taken (and written to force.csv) at least this often, in run time, while
+/// nothing else wakes the plan: a crash loses at most this much of the force stream, and a
+/// long settle does not wake the plan at every sample for nothing.
+const DRAIN_NS: u64 = 250_000_000;
+
+/// Resolves when the watchdog has a reading (`readings`) or trips; never without a
+/// watchdog.
+async fn watchdog_news(m: Option<&Monitor>, readings: bool) {
     match m {
-        Some(m) => m.notified().await,
+        Some(m) if readings => m.reading().await,
+        Some(m) => m.tripped().await,
         None => std::future::pending().await,
+    }
+}
+
+impl Until {
+    /// Whether each new reading can end the wait.
+    fn needs_readings(&self) -> bool {
+        matches!(self, Until::Settle(_) | Until::Contact { .. })
     }
 }
 
@@ -160,11 +174,17 @@ impl Exec<'_> {
                     deadline = next_poll.min(by.by_ns.max(now + 1));
                 }
             }
-            let next = [Some(deadline), self.next_axes, self.next_frame_stream]
-                .into_iter()
-                .flatten()
-                .min()
-                .unwrap_or(deadline);
+            let drain = self.monitor.as_ref().map(|_| now + DRAIN_NS);
+            let next = [
+                Some(deadline),
+                self.next_axes,
+                self.next_frame_stream,
+                drain,
+            ]
+            .into_iter()
+            .flatten()
+            .min()
+            .unwrap_or(deadline);
             let tick_t = self.t_s();
             self.progress
                 .tick(self.step, &self.what, self.phase, tick_t);
@@ -173,7 +193,7 @@ impl Exec<'_> {
                 let cancel = self.cancel.clone();
                 tokio::select! {
                     _ = self.clock.sleep_until_ns(next) => {}
-                    _ = watchdog_news(self.monitor.as_ref()) => {}
+                    _ = watchdog_news(self.monitor.as_ref(), until.needs_readings()) => {}
                     _ = cancel.interrupted(seen) => {}
                 }
             } else {

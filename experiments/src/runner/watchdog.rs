@@ -142,6 +142,7 @@ struct Watch {
     config: WatchConfig,
     clock: Clock,
     wake_plan: Arc<Notify>,
+    alarm: Arc<Notify>,
     wake_watchdog: Arc<Notify>,
     trip_done: Arc<Notify>,
 }
@@ -151,6 +152,7 @@ pub(crate) struct Monitor {
     state: Arc<Mutex<State>>,
     sensor: Arc<tokio::sync::Mutex<Box<dyn ForceSensor>>>,
     wake_plan: Arc<Notify>,
+    alarm: Arc<Notify>,
     wake_watchdog: Arc<Notify>,
     trip_done: Arc<Notify>,
     task: Option<tokio::task::JoinHandle<()>>,
@@ -181,6 +183,7 @@ impl Monitor {
         }));
         let sensor = Arc::new(tokio::sync::Mutex::new(sensor));
         let wake_plan = Arc::new(Notify::new());
+        let alarm = Arc::new(Notify::new());
         let wake_watchdog = Arc::new(Notify::new());
         let trip_done = Arc::new(Notify::new());
         let watch = Watch {
@@ -191,6 +194,7 @@ impl Monitor {
             config,
             clock,
             wake_plan: wake_plan.clone(),
+            alarm: alarm.clone(),
             wake_watchdog: wake_watchdog.clone(),
             trip_done: trip_done.clone(),
         };
@@ -199,6 +203,7 @@ impl Monitor {
             state,
             sensor,
             wake_plan,
+            alarm,
             wake_watchdog,
             trip_done,
             task: Some(task),
@@ -265,10 +270,15 @@ impl Monitor {
         lock(&self.state).late_errors.clone()
     }
 
-    /// Resolves when the watchdog has something new for the plan task (a reading or a
-    /// trip). A notification sent while nobody waits is kept for the next call.
-    pub(crate) async fn notified(&self) {
+    /// Resolves when the watchdog has a new reading (or a trip). A notification sent
+    /// while nobody waits is kept for the next call.
+    pub(crate) async fn reading(&self) {
         self.wake_plan.notified().await;
+    }
+
+    /// Resolves when the watchdog trips.
+    pub(crate) async fn tripped(&self) {
+        self.alarm.notified().await;
     }
 
     /// Ground truth of a simulated sensor.
@@ -396,7 +406,10 @@ impl Watch {
             let mut sensor = self.sensor.lock().await;
             sensor.read().await
         };
+        // Biased: a sensor that answers at once (the simulated one, a queued datagram)
+        // never registers the timeout's timer.
         tokio::select! {
+            biased;
             r = read => match r {
                 Ok(s) => Outcome::Sample(s),
                 Err(e) => Outcome::Error(format!("the force sensor failed: {e}")),
@@ -524,6 +537,7 @@ impl Watch {
             });
         }
         self.wake_plan.notify_one();
+        self.alarm.notify_one();
         let wall = std::time::Instant::now();
         let errors = self.send_stops().await;
         let wall_us = wall.elapsed().as_secs_f64() * 1e6;

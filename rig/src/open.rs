@@ -164,7 +164,8 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
             role: role.to_string(),
             identity: axis.info().identity.clone(),
         });
-        rig.axes.insert(*role, axis);
+        rig.axes
+            .insert(*role, Box::new(crate::checked::CheckedAxis::new(axis)));
     }
     if req.force {
         let cfg = config
@@ -218,7 +219,7 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
             role: "force".into(),
             identity: sensor.info().identity.clone(),
         });
-        rig.force = Some(sensor);
+        rig.force = Some(Box::new(crate::checked::CheckedForce::new(sensor)));
     }
     if req.camera {
         let cfg = config

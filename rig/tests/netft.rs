@@ -170,3 +170,73 @@ async fn an_unreachable_box_or_a_stopped_stream_is_a_timeout_not_a_hang() {
         "{e}"
     );
 }
+
+/// One record whose sequence number jumps by 2³¹ − 1, then normal records carrying 55 N:
+/// the jump is reported (not swallowed), and the next reads carry the new load — the driver
+/// never takes the real records for stale ones and repeats the last good 0 N sample.
+#[tokio::test]
+async fn a_sequence_jump_is_reported_and_never_blinds_the_reader() {
+    let t = twin((1, 0));
+    let mut s = NetFtSensor::open(settings(&t), clock())
+        .await
+        .expect("opens");
+    let x = s.read().await.expect("sample");
+    assert!(x.wrench.fz_n.abs() < 1e-9);
+    lock(t.faults()).jump_once = Some(0x7fff_ffff);
+    *lock(&t.load) = Wrench {
+        fz_n: 55.0,
+        ..Default::default()
+    };
+    let mut jumped = None;
+    let mut loaded = None;
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(2) && loaded.is_none() {
+        match s.read().await {
+            Ok(x) if x.wrench.fz_n > 50.0 => loaded = Some(x),
+            Ok(_) => {}
+            Err(e) => jumped = Some(e),
+        }
+    }
+    let e = jumped.expect("the jump was reported");
+    assert!(
+        matches!(&e, RigError::Garbled { detail, .. } if detail.contains("jumped")),
+        "{e}"
+    );
+    assert!(loaded.is_some(), "never read the 55 N after the jump");
+    assert_eq!(s.stats.jumps, 1, "{:?}", s.stats);
+}
+
+/// Empty and 35-byte datagrams are reported as not whole records, and never make `read`
+/// return an old sample again: each sample comes from a record newer than the last.
+#[tokio::test]
+async fn short_datagrams_are_reported_and_samples_are_never_repeated() {
+    let t = twin((1, 0));
+    let mut s = NetFtSensor::open(settings(&t), clock())
+        .await
+        .expect("opens");
+    for n in [0usize, 35] {
+        let before = s.read().await.expect("sample").ft_seq;
+        lock(t.faults()).short_once = Some(n);
+        let t0 = Instant::now();
+        let mut reported = false;
+        let mut last = before;
+        while t0.elapsed() < Duration::from_millis(500) {
+            match s.read().await {
+                Ok(x) => {
+                    assert!(
+                        x.ft_seq > last,
+                        "sample repeated: {} after {last}",
+                        x.ft_seq
+                    );
+                    last = x.ft_seq;
+                }
+                Err(e) => {
+                    assert!(e.to_string().contains(&format!("{n} bytes")), "{e}");
+                    reported = true;
+                }
+            }
+        }
+        assert!(reported, "a {n}-byte datagram went unreported");
+    }
+    assert_eq!(s.stats.malformed, 2, "{:?}", s.stats);
+}

@@ -322,67 +322,28 @@ fn the_watchdog_stops_the_stage_while_the_plan_waits_on_it() {
          \x20       - hold: {duration: 8 s}\n",
     )
     .unwrap();
-    let loaded = experiments::protocol::load(&p, Some(&rig)).unwrap_or_else(|d| {
-        panic!(
-            "{}",
-            d.iter()
-                .map(|d| d.to_string())
-                .collect::<Vec<_>>()
-                .join("\n")
-        )
-    });
-    // Once the axes stream (and so the polling) has begun: slow replies, and the load.
-    let out = tmp.path().join("runs");
-    let (load, out2) = (ft.load.clone(), out.clone());
-    let (faults, probe) = (zaber.faults().clone(), zaber.transcript_probe());
-    let pusher = std::thread::spawn(move || {
-        let deadline = Instant::now() + Duration::from_secs(30);
-        while Instant::now() < deadline {
-            let begun = std::fs::read_dir(&out2)
-                .ok()
-                .and_then(|mut d| d.next())
-                .is_some_and(|e| {
-                    std::fs::read_to_string(e.unwrap().path().join("journal.jsonl"))
-                        .is_ok_and(|j| j.contains("streams_begin"))
-                });
-            if begun {
-                std::thread::sleep(Duration::from_millis(300));
-                lock(&faults).delay = Duration::from_millis(200);
-                std::thread::sleep(Duration::from_millis(300));
-                *lock(&load) = Wrench {
-                    fz_n: 55.0,
-                    ..Wrench::default()
-                };
-                // Once the stop is in, the stage answers promptly again for the retract.
-                while Instant::now() < deadline && !probe().iter().any(|l| l.contains(" 99 stop")) {
-                    std::thread::sleep(Duration::from_millis(5));
-                }
-                lock(&faults).delay = Duration::ZERO;
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
+    let zfaults = zaber.faults().clone();
+    let probe = zaber.transcript_probe();
+    let load = ft.load.clone();
+    let outcome = run_on_real_rig(&rig, &p, move |out: PathBuf| {
+        // Once the axes stream (and so the polling) has begun: slow replies, and the load.
+        if !wait_for_event(&out, "streams_begin") {
+            return;
         }
+        std::thread::sleep(Duration::from_millis(300));
+        lock(&zfaults).delay = Duration::from_millis(200);
+        std::thread::sleep(Duration::from_millis(300));
+        *lock(&load) = Wrench {
+            fz_n: 55.0,
+            ..Wrench::default()
+        };
+        // Once the stop is in, the stage answers promptly again for the retract.
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while Instant::now() < deadline && !probe().iter().any(|l| l.contains(" 99 stop")) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        lock(&zfaults).delay = Duration::ZERO;
     });
-    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let outcome = rt
-        .block_on(experiments::runner::run(
-            experiments::runner::RunRequest {
-                loaded: &loaded,
-                plan: &plan,
-                out: out.clone(),
-                seed: 0,
-                clock: rig::ClockMode::Monotonic,
-                progress: experiments::progress::ProgressMode::Quiet,
-            },
-            experiments::runner::Cancel::new(),
-        ))
-        .unwrap();
-    pusher.join().unwrap();
     assert_eq!(outcome.status, Status::Aborted, "{:?}", outcome.message);
     let msg = outcome.message.unwrap_or_default();
     assert!(msg.contains("exceeds max_fz 40 N"), "{msg}");
@@ -416,4 +377,306 @@ fn the_watchdog_stops_the_stage_while_the_plan_waits_on_it() {
             .any(|l| l.starts_with("> ") && l.contains(" 99 stop")),
         "no stop with the watchdog's id: {transcript:?}"
     );
+}
+
+/// Waits (up to 30 s) for the run directory under `out` to journal `event`.
+fn wait_for_event(out: &Path, event: &str) -> bool {
+    wait_for_event_within(out, event, Duration::from_secs(30))
+}
+
+/// Waits up to `limit` for the run directory under `out` to journal `event`.
+fn wait_for_event_within(out: &Path, event: &str, limit: Duration) -> bool {
+    let deadline = Instant::now() + limit;
+    let needle = format!("\"event\":\"{event}\"");
+    while Instant::now() < deadline {
+        let seen = std::fs::read_dir(out)
+            .ok()
+            .and_then(|mut d| d.next())
+            .is_some_and(|e| {
+                std::fs::read_to_string(e.unwrap().path().join("journal.jsonl"))
+                    .is_ok_and(|j| j.contains(&needle))
+            });
+        if seen {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    false
+}
+
+/// Runs protocol `p` on rig file `rig` in-process on the monotonic clock (as `gelrig run`
+/// does for a real bench), with `meanwhile` running on a thread given the runs folder.
+fn run_on_real_rig(
+    rig: &Path,
+    p: &Path,
+    meanwhile: impl FnOnce(PathBuf) + Send + 'static,
+) -> experiments::runner::RunOutcome {
+    let loaded = experiments::protocol::load(p, Some(rig)).unwrap_or_else(|d| {
+        panic!(
+            "{}",
+            d.iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join("\n")
+        )
+    });
+    let out = p.parent().unwrap().join("runs");
+    let out2 = out.clone();
+    let side = std::thread::spawn(move || meanwhile(out2));
+    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let outcome = rt
+        .block_on(experiments::runner::run(
+            experiments::runner::RunRequest {
+                loaded: &loaded,
+                plan: &plan,
+                out,
+                seed: 0,
+                clock: rig::ClockMode::Monotonic,
+                progress: experiments::progress::ProgressMode::Quiet,
+            },
+            experiments::runner::Cancel::new(),
+        ))
+        .unwrap();
+    side.join().unwrap();
+    outcome
+}
+
+/// A Net F/T twin with Nano17 ranges, counts per unit not 1e6.
+fn netft_twin() -> rig::twins::netft::NetFtTwin {
+    rig::twins::netft::NetFtTwin::spawn(rig::twins::netft::TwinParams {
+        rate_hz: 1000.0,
+        cal: rig::drivers::netft_rdt::CalInfo {
+            force_unit: 2,
+            torque_unit: 4,
+            counts_per_force: 1_000_000,
+            counts_per_torque: 1_000,
+        },
+        range: rig::ForceRange::NANO17,
+        first_seq: (1, 1),
+    })
+    .unwrap()
+}
+
+/// A force-only protocol holding for `hold_s` while recording force at 50 Hz.
+fn force_hold(dir: &Path, rig_text: &str, hold_s: f64) -> (PathBuf, PathBuf) {
+    let rig = dir.join("rig.yaml");
+    std::fs::write(&rig, rig_text).unwrap();
+    let p = dir.join("p.yaml");
+    std::fs::write(
+        &p,
+        format!(
+            "name: force-hold\n\
+             sensor: {{kind: box}}\n\
+             indenter: {{shape: flat_circle, diameter: 9.5 mm}}\n\
+             safety: {{max_fz: 40 N, max_fxy: 10 N, max_tz: 100 N·mm}}\n\
+             sequence:\n\
+             \x20 - tare: {{duration: 0.3 s}}\n\
+             \x20 - record:\n\
+             \x20     force: 50 Hz\n\
+             \x20     blocks:\n\
+             \x20       - hold: {{duration: {hold_s} s}}\n"
+        ),
+    )
+    .unwrap();
+    (rig, p)
+}
+
+/// Finding 1: one Net F/T record whose sequence jumps by 2³¹ − 1, then records carrying
+/// 55 N against `max_fz: 40 N`. The monitor is never blind: the run stops (failed, the
+/// watchdog naming the jump) instead of completing on a repeated 0 N; and without the jump
+/// the same load aborts on the limit.
+#[test]
+fn a_force_stream_that_jumps_or_crosses_a_limit_stops_the_run() {
+    use rig::{Wrench, lock};
+    for jump in [true, false] {
+        let ft = netft_twin();
+        let tmp = tempfile::tempdir().unwrap();
+        let rig_text = format!(
+            "name: ft-only\nforce: {{driver: net_ft, model: nano17, address: '{}', calibration_port: {}}}\n",
+            ft.rdt_addr(),
+            ft.calibration_addr().port()
+        );
+        let (rig, p) = force_hold(tmp.path(), &rig_text, 6.0);
+        let (faults, load) = (ft.faults().clone(), ft.load.clone());
+        let outcome = run_on_real_rig(&rig, &p, move |out| {
+            if wait_for_event(&out, "streams_begin") {
+                std::thread::sleep(Duration::from_millis(500));
+                if jump {
+                    lock(&faults).jump_once = Some(0x7fff_ffff);
+                }
+                *lock(&load) = Wrench {
+                    fz_n: 55.0,
+                    ..Wrench::default()
+                };
+            }
+        });
+        let msg = outcome.message.clone().unwrap_or_default();
+        if jump {
+            assert_eq!(outcome.status, Status::Failed, "{msg}");
+            assert!(
+                msg.contains("safety monitor") && msg.contains("jumped"),
+                "{msg}"
+            );
+        } else {
+            assert_eq!(outcome.status, Status::Aborted, "{msg}");
+            assert!(msg.contains("exceeds max_fz 40 N"), "{msg}");
+        }
+        let m = manifest(&outcome.dir);
+        assert_eq!(m.safety_events.len(), 1, "{:?}", m.safety_events);
+    }
+}
+
+/// Findings 3 and 11: a controller that reads back `NaN` or `1e308` is a device error,
+/// never data — the run fails naming the axis and the value, steps.csv and run.yaml hold
+/// no NaN, and `gelrig probe` marks the device FAIL; a 4 MiB garbage reply reaches the
+/// manifest and the journal only as a short quote.
+#[test]
+fn absurd_or_flooded_replies_are_device_errors_not_data() {
+    use rig::lock;
+    use rig::twins::smc100::{Smc100Twin, TwinParams};
+    for (fault, expect) in [
+        ("NaN", "not a number"),
+        ("1e308", "outside its travel"),
+        ("flood", "bytes)"),
+    ] {
+        let twin = Smc100Twin::spawn(TwinParams {
+            address: 1,
+            limits: (0.0, 12.0),
+            home_speed: 5.0,
+            time_scale: 1.0,
+        })
+        .unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let rig = tmp.path().join("rig.yaml");
+        std::fs::write(
+            &rig,
+            format!(
+                "name: smc\naxes:\n  shear: {{driver: smc100, port: {}, device: 1, travel: [0 mm, 12 mm], max_speed: 2 mm/s, resolution: 0.0001 mm}}\n",
+                twin.path()
+            ),
+        )
+        .unwrap();
+        let p = tmp.path().join("p.yaml");
+        std::fs::write(
+            &p,
+            "name: shear-move\n\
+             sensor: {kind: box}\n\
+             indenter: {shape: flat_circle, diameter: 9.5 mm}\n\
+             safety: {max_fz: 40 N, max_fxy: 10 N, max_tz: 100 N·mm, retract: {shear: 0 mm}}\n\
+             sequence:\n\
+             \x20 - home: {axes: [shear]}\n\
+             \x20 - move: {axis: shear, to: 1 mm, speed: 2 mm/s, settle: {fixed: 0.5 s}}\n\
+             \x20 - move: {axis: shear, to: 2 mm, speed: 2 mm/s, settle: {fixed: 0.5 s}}\n",
+        )
+        .unwrap();
+        let faults = twin.faults().clone();
+        let outcome = run_on_real_rig(&rig, &p, move |out| {
+            if !wait_for_event(&out, "step_end") {
+                return;
+            }
+            if fault != "flood" {
+                lock(&faults).position_reply = Some(fault.to_string());
+                return;
+            }
+            // Every reply a 4 MiB line, until the run has given up on the device.
+            while !wait_for_event_within(&out, "run_end", Duration::from_millis(5)) {
+                lock(&faults).flood_next = Some(4 << 20);
+            }
+        });
+        let msg = outcome.message.clone().unwrap_or_default();
+        assert_eq!(outcome.status, Status::Failed, "{fault}: {msg}");
+        assert!(msg.contains("shear") || msg.contains("SMC100"), "{msg}");
+        if fault != "flood" {
+            assert!(msg.contains(expect), "{fault}: {msg}");
+        }
+        let run_yaml = std::fs::read_to_string(outcome.dir.join("run.yaml")).unwrap();
+        assert!(
+            run_yaml.len() < 20_000,
+            "{fault}: run.yaml is {} bytes",
+            run_yaml.len()
+        );
+        assert!(!run_yaml.to_lowercase().contains(".nan"), "{run_yaml}");
+        let journal = std::fs::read_to_string(outcome.dir.join("journal.jsonl")).unwrap();
+        assert!(
+            journal.len() < 100_000,
+            "{fault}: journal is {} bytes",
+            journal.len()
+        );
+        let steps = std::fs::read_to_string(outcome.dir.join("steps.csv")).unwrap();
+        assert!(!steps.to_lowercase().contains("nan"), "{steps}");
+        if fault == "NaN" {
+            let rig_cfg = experiments::protocol::load_rig(&rig).unwrap().0;
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            let probes = rt.block_on(experiments::bench::probe(&rig_cfg));
+            let shear = probes.iter().find(|p| p.role == "shear").unwrap();
+            assert!(
+                !shear.ok && shear.detail.contains("not a number"),
+                "{shear:?}"
+            );
+        }
+    }
+}
+
+/// Finding 2: a stage stuck BUSY — it answers, reports itself moving, goes nowhere — ends
+/// the run as failed naming the axis, the move and where it stands, within the move's
+/// deadline (1.5 × its nominal time + 5 s), instead of "moving" forever.
+#[test]
+fn a_stage_stuck_busy_fails_the_run_within_the_move_deadline() {
+    use rig::lock;
+    use rig::twins::zaber::{TwinParams, ZaberTwin};
+    const MICROSTEP_MM: f64 = 0.047625e-3;
+    let zaber = ZaberTwin::spawn(TwinParams {
+        device: 1,
+        limits: (0, (25.0 / MICROSTEP_MM) as i64),
+        require_checksum: true,
+        time_scale: 1.0,
+    })
+    .unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let rig = tmp.path().join("rig.yaml");
+    std::fs::write(
+        &rig,
+        format!(
+            "name: stuck\naxes:\n  shear: {{driver: zaber, port: {}, device: 1, axis_number: 1, microstep: {MICROSTEP_MM}, checksum: true, travel: [0 mm, 25 mm], max_speed: 2 mm/s, resolution: 0.002 mm}}\n",
+            zaber.path()
+        ),
+    )
+    .unwrap();
+    let p = tmp.path().join("p.yaml");
+    std::fs::write(
+        &p,
+        "name: stuck-move\n\
+         sensor: {kind: box}\n\
+         indenter: {shape: flat_circle, diameter: 9.5 mm}\n\
+         safety: {max_fz: 40 N, max_fxy: 10 N, max_tz: 100 N·mm, retract: {shear: 0 mm}}\n\
+         sequence:\n\
+         \x20 - home: {axes: [shear]}\n\
+         \x20 - move: {axis: shear, to: 2 mm, speed: 2 mm/s}\n",
+    )
+    .unwrap();
+    let faults = zaber.faults().clone();
+    let t0 = Instant::now();
+    let outcome = run_on_real_rig(&rig, &p, move |out| {
+        if wait_for_event(&out, "home") {
+            lock(&faults).stuck_busy = true;
+        }
+    });
+    let elapsed = t0.elapsed();
+    let msg = outcome.message.clone().unwrap_or_default();
+    assert_eq!(outcome.status, Status::Failed, "{msg}");
+    assert!(
+        msg.contains("the shear axis did not come to rest within 6.5 s")
+            && msg.contains("a move from 0 to 2 mm at 2 mm/s")
+            && msg.contains("still busy"),
+        "{msg}"
+    );
+    assert!(elapsed < Duration::from_secs(30), "took {elapsed:?}");
 }

@@ -3,8 +3,15 @@
 //! On open the driver reads counts-per-force and counts-per-torque and their units from
 //! the box (READCALINFO over TCP) — never a hard-coded 1e6 — then starts real-time
 //! streaming. `read` drains every datagram that arrived and returns the newest record.
-//! Loss and reordering are counted as netft_utils does: `seqdiff = (i32)(rdt − last)`;
-//! below 1 is out of order (dropped), `seqdiff − 1` records were lost. The box's
+//! Loss and reordering are counted as netft_utils does, `seqdiff = (i32)(rdt − last)`, but
+//! only within what the stream can explain: a gap of `seqdiff − 1` lost records must fit
+//! the time since the last record at the box's highest rate, and a late record must be
+//! within a small reordering window. Anything else — one record whose sequence jumps by
+//! 2³¹, say — is a sequence the driver cannot explain, and `read` reports it instead of
+//! taking every later record for a stale one and repeating the last good value (which
+//! once left the safety monitor reading 0 N while the sensor read 100 N). A datagram that
+//! is not whole 36-byte records is reported the same way, and `read` never returns a
+//! sample it returned before: no new record within the timeout is a timeout. The box's
 //! `ft_sequence` is unwrapped to 64 bits (it is the sensor's own clock). Status bits 30/31
 //! (out of range, error) surface as [`STATUS_SATURATED`] on the sample.
 
@@ -46,6 +53,22 @@ pub struct StreamStats {
     pub lost: u64,
     /// Records that arrived after a newer one (dropped).
     pub out_of_order: u64,
+    /// Records whose sequence number the stream could not explain (reported).
+    pub jumps: u64,
+    /// Datagrams that were not whole records (reported).
+    pub malformed: u64,
+}
+
+/// The box streams at most 7000 records/s (manual 9620-05-Net FT, RDT rates).
+const MAX_RATE_HZ: f64 = 7000.0;
+/// Records a reordering can put behind a newer one (UDP on a local link reorders by a few).
+const REORDER_WINDOW: i64 = 64;
+
+/// The largest forward step of `rdt_sequence` that loss can explain after `elapsed_s`:
+/// every record the box could have sent meanwhile, twice over, plus a margin for records
+/// queued in the socket before the clock was read.
+fn explainable_gap(elapsed_s: f64) -> i64 {
+    (elapsed_s.max(0.0) * MAX_RATE_HZ * 2.0) as i64 + 256
 }
 
 /// The driver.
@@ -56,6 +79,8 @@ pub struct NetFtSensor {
     n_per_count: f64,
     nmm_per_count: f64,
     last_rdt: Option<u32>,
+    /// Wall time of the last accepted record, for the explainable gap.
+    last_at: Option<std::time::Instant>,
     ft_epoch: u64,
     last_ft: Option<u32>,
     latest: Option<ForceSample>,
@@ -141,6 +166,7 @@ impl NetFtSensor {
             n_per_count,
             nmm_per_count,
             last_rdt: None,
+            last_at: None,
             ft_epoch: 0,
             last_ft: None,
             latest: None,
@@ -203,7 +229,9 @@ impl NetFtSensor {
             })
     }
 
-    /// Takes in datagrams: waits for one if `wait`, then drains what is queued.
+    /// Takes in datagrams: waits for one if `wait`, then drains what is queued. A datagram
+    /// that is not whole records, or a record the sequence cannot explain, ends the call
+    /// with an error (the rest of the queue is taken by the next call).
     async fn receive(&mut self, wait: bool) -> Result<(), RigError> {
         let dev = name(&self.settings);
         let mut buf = [0u8; 36 * 40];
@@ -229,26 +257,49 @@ impl NetFtSensor {
                 }
             };
             let t_ns = self.clock.now_ns();
-            // Datagrams that are not whole records are ignored (spec: accept multiples of 36).
             let Some(records) = Record::parse_all(&buf[..n]) else {
-                continue;
+                self.stats.malformed += 1;
+                return Err(RigError::Garbled {
+                    device: dev,
+                    detail: format!(
+                        "a datagram of {n} bytes is not whole 36-byte RDT records; \
+                         fix: check that nothing else sends to this port"
+                    ),
+                });
             };
             for r in records {
-                self.take(r, t_ns);
+                self.take(r, t_ns).map_err(|detail| RigError::Garbled {
+                    device: dev.clone(),
+                    detail,
+                })?;
             }
         }
     }
 
-    fn take(&mut self, r: Record, t_ns: u64) {
-        if let Some(last) = self.last_rdt {
-            let d = r.rdt_seq.wrapping_sub(last) as i32;
-            if d < 1 {
+    fn take(&mut self, r: Record, t_ns: u64) -> Result<(), String> {
+        let now = std::time::Instant::now();
+        if let (Some(last), Some(at)) = (self.last_rdt, self.last_at) {
+            let d = i64::from(r.rdt_seq.wrapping_sub(last) as i32);
+            let elapsed_s = now.duration_since(at).as_secs_f64();
+            let max_gap = explainable_gap(elapsed_s);
+            if d < 1 && d > -REORDER_WINDOW {
                 self.stats.out_of_order += 1;
-                return;
+                return Ok(());
+            }
+            if d < 1 || d > max_gap {
+                self.stats.jumps += 1;
+                return Err(format!(
+                    "the RDT sequence jumped from {last} to {} ({d:+} records {:.0} ms after the \
+                     last one; at most {max_gap} can be lost in that time); fix: check that only \
+                     one program streams from this box, then restart the run",
+                    r.rdt_seq,
+                    elapsed_s * 1e3
+                ));
             }
             self.stats.lost += (d - 1) as u64;
         }
         self.last_rdt = Some(r.rdt_seq);
+        self.last_at = Some(now);
         if let Some(last) = self.last_ft
             && r.ft_seq < last
         {
@@ -275,6 +326,7 @@ impl NetFtSensor {
                 r.status
             },
         });
+        Ok(())
     }
 }
 
@@ -287,9 +339,11 @@ impl ForceSensor for NetFtSensor {
     async fn read(&mut self) -> Result<ForceSample, RigError> {
         let before = self.stats.received;
         self.receive(false).await?;
-        if self.stats.received == before {
-            // Nothing new queued: wait for the next record, boundedly.
-            match tokio::time::timeout(self.settings.timeout, self.receive(true)).await {
+        // Nothing new queued: wait for the next record, boundedly. Reordered or duplicate
+        // records are no news; only a newer record ends the wait.
+        let deadline = tokio::time::Instant::now() + self.settings.timeout;
+        while self.stats.received == before {
+            match tokio::time::timeout_at(deadline, self.receive(true)).await {
                 Ok(r) => r?,
                 Err(_) => {
                     return Err(RigError::Timeout {

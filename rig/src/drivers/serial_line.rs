@@ -74,49 +74,78 @@ pub(crate) enum Outcome<T> {
     Nothing(Option<String>),
 }
 
+/// Longest reply line kept, bytes: every reply of the supported devices fits in a few
+/// dozen; a longer one is noise (a wrong baud rate, another device) and is discarded up to
+/// its end instead of being buffered whole.
+const MAX_LINE: usize = 4096;
+
 /// Writes `line`, then hands every complete, non-empty line read before `timeout` to
 /// `judge`: `Ok(Some(answer))` ends the exchange, `Ok(None)` skips the line (not ours),
-/// `Err(why)` records it as garbled and keeps reading. I/O errors end it at once.
+/// `Err(why)` records it as garbled and keeps reading. Lines are read as bytes (invalid
+/// UTF-8 is garbled, not a disconnect) and bounded by [`MAX_LINE`]. I/O errors end it at
+/// once.
 pub(crate) fn exchange<T>(
     port: &Mutex<BufReader<Box<dyn serialport::SerialPort>>>,
     line: &str,
     timeout: Duration,
     mut judge: impl FnMut(&str) -> Result<Option<T>, String>,
 ) -> std::io::Result<Outcome<T>> {
+    use std::io::ErrorKind::{TimedOut, WouldBlock};
     let mut p = lock(port);
     p.get_mut()
         .write_all(line.as_bytes())
         .and_then(|()| p.get_mut().flush())
         .map_err(disconnected)?;
     let deadline = Instant::now() + timeout;
-    let mut buf = String::new();
+    let mut buf: Vec<u8> = Vec::new();
+    let mut dropped = 0usize;
     let mut garbled = None;
     while Instant::now() < deadline {
-        match p.read_line(&mut buf) {
-            Ok(0) => {
+        let available = match p.fill_buf() {
+            Ok([]) => {
                 return Err(std::io::Error::other(
                     "the port closed; fix: check the cable",
                 ));
             }
-            Ok(_) if buf.ends_with('\n') => {
-                let l = std::mem::take(&mut buf);
-                let l = l.trim();
-                if l.is_empty() {
-                    continue;
-                }
-                match judge(l) {
-                    Ok(Some(answer)) => return Ok(Outcome::Answer(answer)),
-                    Ok(None) => {}
-                    Err(why) => garbled = Some(why),
-                }
-            }
-            Ok(_) => {}
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) => {}
+            Ok(b) => b,
+            Err(e) if matches!(e.kind(), TimedOut | WouldBlock) => continue,
             Err(e) => return Err(disconnected(e)),
+        };
+        let (chunk, complete) = match available.iter().position(|&b| b == b'\n') {
+            Some(i) => (&available[..=i], true),
+            None => (available, false),
+        };
+        let room = MAX_LINE.saturating_sub(buf.len()).min(chunk.len());
+        buf.extend_from_slice(&chunk[..room]);
+        dropped += chunk.len() - room;
+        let used = chunk.len();
+        p.consume(used);
+        if !complete {
+            continue;
+        }
+        let bytes = std::mem::take(&mut buf);
+        if std::mem::take(&mut dropped) > 0 {
+            garbled = Some(format!(
+                "a reply line longer than {MAX_LINE} bytes (`{}`)",
+                crate::quote(&String::from_utf8_lossy(&bytes))
+            ));
+            continue;
+        }
+        let Ok(text) = std::str::from_utf8(&bytes) else {
+            garbled = Some(format!(
+                "a reply that is not text (`{}`)",
+                crate::quote(&String::from_utf8_lossy(&bytes))
+            ));
+            continue;
+        };
+        let l = text.trim();
+        if l.is_empty() {
+            continue;
+        }
+        match judge(l) {
+            Ok(Some(answer)) => return Ok(Outcome::Answer(answer)),
+            Ok(None) => {}
+            Err(why) => garbled = Some(why),
         }
     }
     Ok(Outcome::Nothing(garbled))

@@ -161,7 +161,7 @@ impl Smc100Axis {
             .and_then(|h| u8::from_str_radix(h, 16).ok())
             .ok_or_else(|| RigError::Garbled {
                 device: self.name(),
-                detail: format!("TS reply `{ts}`"),
+                detail: format!("TS reply `{}`", crate::quote(&ts)),
             })
     }
 }
@@ -180,7 +180,11 @@ fn exchange(port: &LinePort, line: &str, echo: Option<&str>, timeout: Duration) 
     };
     let judge = |l: &str| match l.strip_prefix(echo) {
         Some(v) => Ok(Some(v.trim().to_string())),
-        None => Err(format!("`{l}` does not answer `{}`", line.trim())),
+        None => Err(format!(
+            "`{}` does not answer `{}`",
+            crate::quote(l),
+            line.trim()
+        )),
     };
     match serial_line::exchange(port, line, timeout, judge) {
         Ok(Outcome::Answer(v)) => Ok(Some(v)),
@@ -244,7 +248,7 @@ impl Axis for Smc100Axis {
         let tp = self.query("TP").await?;
         let position = tp.parse::<f64>().map_err(|_| RigError::Garbled {
             device: self.name(),
-            detail: format!("TP value `{tp}`"),
+            detail: format!("TP value `{}`", crate::quote(&tp)),
         })?;
         let st = self.state().await?;
         Ok(AxisStatus {

@@ -113,7 +113,7 @@ impl ZaberAxis {
                         return Err(RigError::Rejected {
                             device: name,
                             command: cmd.to_string(),
-                            reason: reply.data.clone(),
+                            reason: crate::quote(&reply.data),
                         });
                     }
                     return Ok(reply);
@@ -164,7 +164,7 @@ fn exchange(
             return Ok(None);
         }
         if checksum && l.starts_with('@') && !l.contains(':') {
-            return Err(format!("`{l}` lacks its checksum"));
+            return Err(format!("`{}` lacks its checksum", crate::quote(l)));
         }
         parse_reply(l).map(|r| (r.id == Some(id)).then_some(r))
     };
@@ -237,7 +237,7 @@ impl Axis for ZaberAxis {
         let r = self.transact("get pos", true).await?;
         let steps: f64 = r.data.trim().parse().map_err(|_| RigError::Garbled {
             device: device_name(&self.settings),
-            detail: format!("position `{}` is not a number", r.data),
+            detail: format!("position `{}` is not a number", crate::quote(&r.data)),
         })?;
         Ok(AxisStatus {
             position: steps * self.settings.microstep,

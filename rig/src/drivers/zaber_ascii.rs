@@ -64,7 +64,7 @@ pub fn parse_reply(line: &str) -> Result<Reply, String> {
     let line = line.trim_end_matches(['\r', '\n']);
     let rest = line
         .strip_prefix('@')
-        .ok_or_else(|| format!("`{line}` is not a reply (no `@`)"))?;
+        .ok_or_else(|| format!("`{}` is not a reply (no `@`)", crate::quote(line)))?;
     let body = verify(rest)?;
     let f: Vec<&str> = body.split_whitespace().collect();
     // With an id there are 7 fields, without 6 (data may contain spaces: join the tail).
@@ -75,21 +75,36 @@ pub fn parse_reply(line: &str) -> Result<Reply, String> {
         (None, 2)
     };
     if f.len() < k + 4 {
-        return Err(format!("`{line}` has too few fields"));
+        return Err(format!("`{}` has too few fields", crate::quote(line)));
     }
     let num = |s: &str, what: &str| {
-        s.parse::<u8>()
-            .map_err(|_| format!("{what} `{s}` in `{line}` is not a number"))
+        s.parse::<u8>().map_err(|_| {
+            format!(
+                "{what} `{}` in `{}` is not a number",
+                crate::quote(s),
+                crate::quote(line)
+            )
+        })
     };
     let ok = match f[k] {
         "OK" => true,
         "RJ" => false,
-        other => return Err(format!("reply flag `{other}` is neither OK nor RJ")),
+        other => {
+            return Err(format!(
+                "reply flag `{}` is neither OK nor RJ",
+                crate::quote(other)
+            ));
+        }
     };
     let busy = match f[k + 1] {
         "BUSY" => true,
         "IDLE" => false,
-        other => return Err(format!("status `{other}` is neither BUSY nor IDLE")),
+        other => {
+            return Err(format!(
+                "status `{}` is neither BUSY nor IDLE",
+                crate::quote(other)
+            ));
+        }
     };
     Ok(Reply {
         device: num(f[0], "device")?,

@@ -4,7 +4,7 @@
 //! starts a move at the written speed (busy until done); a target beyond the drive's
 //! limits raises the alarm bit and answers IllegalDataValue (0x03); homing runs to 0 and
 //! sets the homed bit; requests for another unit id get no reply (the driver times out).
-//! Faults: busy exceptions (0x06), silence, and (RTU) garbled replies.
+//! Faults: busy exceptions (0x06), silence, a drive stuck busy, and (RTU) garbled replies.
 //!
 //! `tokio-modbus`'s RTU server needs `tokio-serial` (libudev), so the RTU side frames by
 //! hand: requests are cut by their function code's length, CRC-16/MODBUS checked (a bad
@@ -33,6 +33,8 @@ pub struct Faults {
     pub silent: bool,
     /// Corrupt the next N replies (RTU: the CRC no longer matches).
     pub garble_next: u32,
+    /// The drive keeps its busy bit set and goes nowhere (a jam, a stalled motor).
+    pub stuck_busy: bool,
 }
 
 struct Drive {
@@ -70,8 +72,14 @@ struct Service {
 impl Service {
     fn read(&self, addr: u16, n: u16) -> Result<Vec<u16>, ExceptionCode> {
         let m = &self.map;
+        let stuck = lock(&self.faults).stuck_busy;
         let mut d = lock(&self.drive);
         let (pos, moving) = d.at();
+        if stuck {
+            d.from = pos;
+            d.to = pos;
+        }
+        let moving = moving || stuck;
         if !moving && d.homing {
             d.homing = false;
             d.homed = true;

@@ -7,7 +7,8 @@
 //! requester at `rate_hz`; `0x0000` stops; `0x0042` biases to the current load. Counters:
 //! `rdt_seq` from 1 per packet, `ft_seq` at 7000 Hz; both wrap at 2³² and can be started
 //! near the wrap. Saturation sets status bits 31|30. Faults: loss, reordering,
-//! duplication, ignoring requests, and a stopped stream.
+//! duplication, ignoring requests, a stopped stream, a one-off sequence jump and a short
+//! or empty datagram.
 
 use std::net::{SocketAddr, TcpListener, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -35,6 +36,12 @@ pub struct Faults {
     pub ignore_requests: bool,
     /// Stop sending records (the box hung).
     pub silent: bool,
+    /// Add this to the next record's `rdt_sequence`, once (a corrupted or foreign record;
+    /// the records after it continue the real sequence).
+    pub jump_once: Option<u32>,
+    /// Send a datagram of this many zero bytes in place of the next record, once (a short
+    /// or empty datagram: not whole records).
+    pub short_once: Option<usize>,
 }
 
 /// Box parameters.
@@ -248,8 +255,18 @@ fn send_one(
 ) {
     {
         let Some(to) = *client else { return };
-        let f = lock(faults).clone();
+        let f = {
+            let mut f = lock(faults);
+            let now = f.clone();
+            f.jump_once = None;
+            f.short_once = None;
+            now
+        };
         if f.silent {
+            return;
+        }
+        if let Some(n) = f.short_once {
+            let _ = udp.send_to(&vec![0u8; n], to);
             return;
         }
         let (w, saturated) = load.now(&p.range);
@@ -261,7 +278,7 @@ fn send_one(
                 .clamp(i32::MIN as f64, i32::MAX as f64) as i32
         });
         let rec = Record {
-            rdt_seq: *rdt_seq,
+            rdt_seq: rdt_seq.wrapping_add(f.jump_once.unwrap_or(0)),
             ft_seq: *ft_seq,
             status: if saturated {
                 STATUS_ERROR | STATUS_OUT_OF_RANGE

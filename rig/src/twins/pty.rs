@@ -24,6 +24,14 @@ pub struct Faults {
     pub delay: Duration,
     /// Close the port (the device was unplugged).
     pub disconnect: bool,
+    /// Replace the next reply by this many bytes of noise on one line (a flood).
+    pub flood_next: Option<usize>,
+    /// The stage reports itself moving forever and goes nowhere (a jam, a stalled motor, a
+    /// controller that never leaves BUSY); it still answers.
+    pub stuck_busy: bool,
+    /// The text of the position in every position reply instead of the real value (`NaN`,
+    /// `1e308`: a controller's firmware fault).
+    pub position_reply: Option<String>,
 }
 
 /// A running line device.
@@ -38,10 +46,11 @@ pub struct PtyTwin {
 static PAIR: Mutex<()> = Mutex::new(());
 
 impl PtyTwin {
-    /// Opens a pseudo-terminal and serves `handler` on it until dropped. `garble` turns a
-    /// reply into a corrupted one.
+    /// Opens a pseudo-terminal and serves `handler` on it until dropped; the handler sees
+    /// the faults in force (for those only the device can act out). `garble` turns a reply
+    /// into a corrupted one.
     pub fn spawn(
-        mut handler: impl FnMut(&str) -> Option<String> + Send + 'static,
+        mut handler: impl FnMut(&str, &Faults) -> Option<String> + Send + 'static,
         garble: fn(&str) -> String,
     ) -> std::io::Result<Self> {
         let (mut master, path) = open_pair()?;
@@ -111,7 +120,7 @@ impl Drop for PtyTwin {
 
 fn serve(
     master: &mut TTYPort,
-    handler: &mut dyn FnMut(&str) -> Option<String>,
+    handler: &mut dyn FnMut(&str, &Faults) -> Option<String>,
     garble: fn(&str) -> String,
     faults: &Mutex<Faults>,
     stop: &AtomicBool,
@@ -148,12 +157,16 @@ fn serve(
                 continue;
             }
             lock(log).push(format!("> {line}"));
-            let Some(mut reply) = handler(&line) else {
+            let f = lock(faults).clone();
+            let Some(mut reply) = handler(&line, &f) else {
                 continue;
             };
-            let f = lock(faults).clone();
             if f.no_reply {
                 continue;
+            }
+            if let Some(n) = f.flood_next {
+                lock(faults).flood_next = None;
+                reply = "x".repeat(n);
             }
             if f.garble_next > 0 {
                 lock(faults).garble_next -= 1;
@@ -162,7 +175,7 @@ fn serve(
             if !f.delay.is_zero() {
                 std::thread::sleep(f.delay);
             }
-            lock(log).push(format!("< {reply}"));
+            lock(log).push(format!("< {}", crate::quote(&reply)));
             // A driver that went away mid-reply: drop the reply, keep serving.
             let _ = master.write_all(format!("{reply}\r\n").as_bytes());
         }

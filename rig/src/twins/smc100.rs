@@ -70,7 +70,7 @@ impl Smc100Twin {
         }));
         let st = state.clone();
         let pty = PtyTwin::spawn(
-            move |line| respond(line, &params, &mut lock(&st)),
+            move |line, faults| respond(line, &params, &mut lock(&st), faults),
             |r| r.replacen("TP", "T?", 1).replacen("TE", "T#", 1),
         )?;
         Ok(Self { pty, state })
@@ -98,7 +98,7 @@ impl Smc100Twin {
     }
 }
 
-fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
+fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Option<String> {
     let digits = line.chars().take_while(char::is_ascii_digit).count();
     let address: u8 = line[..digits].parse().ok()?;
     if address != p.address {
@@ -111,6 +111,16 @@ fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
     let (cmd, value) = rest.split_at(cut);
     let now = Instant::now();
     let (pos, moving) = st.at(now);
+    if faults.stuck_busy {
+        // Frozen where it is, and MOVING: whatever it is told.
+        *st = State {
+            from: pos,
+            to: pos,
+            start: now,
+            ..*st
+        };
+    }
+    let moving = moving || faults.stuck_busy;
     if !moving && st.homing {
         st.homing = false;
         st.referenced = true;
@@ -143,7 +153,10 @@ fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
         }
     };
     match (cmd, value) {
-        ("TP", "") => reply(format!("TP{pos:.5}")),
+        ("TP", "") => match &faults.position_reply {
+            Some(text) => reply(format!("TP{text}")),
+            None => reply(format!("TP{pos:.5}")),
+        },
         ("TS", "") => reply(format!("TS0000{state_code}")),
         ("TE", "") => {
             let e = st.error;

@@ -79,7 +79,7 @@ impl ZaberTwin {
         }));
         let st = state.clone();
         let pty = PtyTwin::spawn(
-            move |line| respond(line, &params, &mut lock(&st)),
+            move |line, faults| respond(line, &params, &mut lock(&st), faults),
             |r| r.replacen('@', "@X", 1).replace(" OK ", " 0K "),
         )?;
         Ok(Self { pty, state })
@@ -118,9 +118,19 @@ impl ZaberTwin {
 }
 
 /// The reply to one command line, or `None` for a message to another device.
-fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
+fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Option<String> {
     let now = Instant::now();
     let (pos, busy) = st.motion.at(now);
+    if faults.stuck_busy {
+        // Frozen where it is, and busy: whatever it is told.
+        st.motion = Motion {
+            from: pos,
+            to: pos,
+            start: now,
+            speed: 1.0,
+        };
+    }
+    let busy = busy || faults.stuck_busy;
     let reply = |axis: u8, id: Option<u8>, ok: bool, busy: bool, warn: &str, data: &str| {
         let id = id.map(|i| format!(" {i}")).unwrap_or_default();
         let body = format!(
@@ -157,7 +167,10 @@ fn respond(line: &str, p: &TwinParams, st: &mut State) -> Option<String> {
     let rj = |why: &str| Some(reply(cmd.axis, cmd.id, false, busy, warn, why));
     match words.as_slice() {
         [] => ok("0", busy, warn),
-        ["get", "pos"] => ok(&format!("{}", pos.round() as i64), busy, warn),
+        ["get", "pos"] => match &faults.position_reply {
+            Some(text) => ok(text, busy, warn),
+            None => ok(&format!("{}", pos.round() as i64), busy, warn),
+        },
         ["get", "deviceid"] => ok("50081", busy, warn),
         ["get", "version"] => ok("7.38", busy, warn),
         ["home"] => {

@@ -161,6 +161,12 @@ fn explain(message: &str) -> (String, String) {
         };
         return (message.to_string(), fix);
     }
+    if message.starts_with("duplicate entry") {
+        return (
+            message.replace("duplicate entry", "a key appears twice in this mapping:"),
+            "keep one of the two (the second used to win silently)".to_string(),
+        );
+    }
     if let Some(field) = quoted_after(message, "missing field `") {
         return (
             message.to_string(),

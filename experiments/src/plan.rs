@@ -207,7 +207,7 @@ pub fn plan(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> Plan {
             ActionKind::Home { axes } => {
                 for r in axes {
                     if let Some(k) = kin.get(r) {
-                        let home = 0.0_f64.clamp(k.travel.0, k.travel.1);
+                        let home = 0.0_f64.max(k.travel.0).min(k.travel.1);
                         let here = pos.get(r).copied().unwrap_or(Pos::Rel(0.0));
                         let o = origin.get(r).copied().unwrap_or_default();
                         d = d.max_of(

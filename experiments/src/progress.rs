@@ -4,6 +4,7 @@
 //! job shows the run's history; the bar shows step, phase and the remaining time, in run
 //! (virtual) time and, when that differs, wall time.
 
+use std::io::Write as _;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -126,7 +127,7 @@ impl Progress {
             pb.set_position(step as u64);
             pb.println(text);
         } else if self.plain {
-            eprintln!("{text}");
+            let _ = writeln!(std::io::stderr().lock(), "{text}");
         }
     }
 
@@ -135,7 +136,7 @@ impl Progress {
         if let Some(pb) = &self.bar {
             pb.println(line);
         } else if self.plain {
-            eprintln!("{line}");
+            let _ = writeln!(std::io::stderr().lock(), "{line}");
         }
     }
 

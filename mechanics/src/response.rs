@@ -287,12 +287,61 @@ fn quantise(depth_mm: f64, h: f64) -> u64 {
     ((depth_mm / h) * 200.0).round().max(0.0) as u64
 }
 
+/// Largest grid side the model solves on: 1024² cells, a few hundred MB of solver state and
+/// minutes of solving. An indenter too small for its layer needs a finer grid over the same
+/// reach (the layer's influence extends about 8–12 thicknesses) and is refused instead of
+/// allocating until the process is killed.
+pub const MAX_GRID_SIDE: usize = 1024;
+
 impl ContactModel {
+    /// Side of the largest grid [`ContactModel::build`] would solve on for this contact,
+    /// computed without allocating: the field grid (and its double-resolution flat-punch
+    /// pressure), the flat punch's table grid, or the curved indenter's grid at its
+    /// shallowest tabulated depth (0.5 % of the thickness, where the contact is smallest).
+    pub fn grid_side(contact: &Contact, quality: &Quality, fields: bool) -> usize {
+        let h = contact.layer.thickness_mm;
+        let extent = contact.indenter.footprint_mm();
+        let mut side = if fields {
+            2 * fast_size(quality.field_cells)
+        } else {
+            0
+        };
+        if contact.indenter.is_flat() {
+            let dx = extent / quality.cells_flat as f64;
+            side = side.max(LayerOperator::period_for(extent, h, dx));
+        } else {
+            let radius = extent / 2.0;
+            let length = match contact.indenter {
+                Indenter::Cylinder { length_mm, .. } => length_mm.min(contact.layer.length_mm),
+                _ => 0.0,
+            };
+            let a = (radius * 0.005 * h).sqrt();
+            let reach = 2.4 * a * 1.1;
+            let dx = reach / quality.cells_curved as f64;
+            let span = reach.max(length * 1.1) + 8.0 * h;
+            let cells = span / dx;
+            side = side.max(if cells < 1e7 {
+                fast_size(cells.ceil() as usize)
+            } else {
+                usize::MAX
+            });
+        }
+        side
+    }
+
     /// Builds the model: every solve the spec asks for happens here.
     pub fn build(spec: ModelSpec) -> Result<Self, MechanicsError> {
         spec.contact.layer.check()?;
         spec.contact.material.check()?;
         spec.contact.indenter.check()?;
+        let side = Self::grid_side(&spec.contact, &spec.quality, spec.field_view_mm.is_some());
+        if side > MAX_GRID_SIDE {
+            return Err(MechanicsError::OutOfRange {
+                name: "contact grid side (cells)",
+                value: side as f64,
+                allowed: "at most 1024: the indenter is too small for this layer to simulate",
+            });
+        }
         let c = &spec.contact;
         let h = c.layer.thickness_mm;
         let mu_mod = c.material.shear_modulus_mpa();

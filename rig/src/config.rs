@@ -374,7 +374,7 @@ impl RigConfig {
     /// Checks what parsing cannot: units consistent per axis, limits ordered, sim geometry
     /// present where a simulator needs it.
     pub fn check(&self) -> Vec<ConfigIssue> {
-        let mut issues = Vec::new();
+        let mut issues = self.check_ranges();
         for (role, axis) in &self.axes {
             let at = YamlPath::root().key("axes").key(role.name());
             let unit = axis.unit();
@@ -426,22 +426,6 @@ impl RigConfig {
                     ),
                 });
             }
-            if axis.poll_rate.is_some_and(|r| r.hz() <= 0.0) {
-                issues.push(ConfigIssue {
-                    path: at.key("poll_rate"),
-                    message: "poll_rate must be positive".into(),
-                    fix: "write e.g. `20 Hz`".into(),
-                });
-            }
-        }
-        if let Some(cam) = &self.camera
-            && (cam.width == 0 || cam.height == 0 || cam.fps.hz() <= 0.0)
-        {
-            issues.push(ConfigIssue {
-                path: YamlPath::root().key("camera"),
-                message: "camera width, height and fps must be positive".into(),
-                fix: "write e.g. `width: 640, height: 480, fps: 25 Hz`".into(),
-            });
         }
         for (role, axis) in &self.axes {
             let at = YamlPath::root().key("axes").key(role.name());
@@ -521,15 +505,6 @@ impl RigConfig {
                 fix: "add `path: ../shared/data/gelsight-mini-press`".into(),
             });
         }
-        if let Some(t) = &self.twins
-            && !(t.time_scale.is_finite() && t.time_scale > 0.0)
-        {
-            issues.push(ConfigIssue {
-                path: YamlPath::root().key("twins").key("time_scale"),
-                message: format!("time_scale {} is not a positive number", t.time_scale),
-                fix: "let `gelrig sim serve --time-scale K` write this section".into(),
-            });
-        }
         if self.uses_sim() && self.sim.is_none() {
             issues.push(ConfigIssue {
                 path: YamlPath::root().key("name"),
@@ -537,6 +512,193 @@ impl RigConfig {
                 fix: "add `sim: {normal_contact: 10 mm}` giving the simulated bench's geometry"
                     .into(),
             });
+        }
+        issues
+    }
+
+    /// Plausible ranges of every value, each with why it ends where it does: a value can be
+    /// well-formed and still impossible (`fps: 1e12 Hz` divided a frame period down to zero,
+    /// a 100000×65535 camera aborted on allocation, `time_scale: 1e-300` stalled a run).
+    /// Non-finite values are outside every range.
+    fn check_ranges(&self) -> Vec<ConfigIssue> {
+        let mut issues = Vec::new();
+        let mut within =
+            |path: YamlPath, what: &str, v: f64, lo: f64, hi: f64, unit: &str, why: &str| {
+                if !(lo..=hi).contains(&v) {
+                    let u = if unit.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" {unit}")
+                    };
+                    issues.push(ConfigIssue {
+                        path,
+                        message: format!(
+                            "{what} {}{u} is outside the plausible range [{lo}, {hi}]{u}: {why}",
+                            crate::units::fmt_value(v)
+                        ),
+                        fix: format!("write a value between {lo} and {hi}{u}"),
+                    });
+                }
+            };
+        for (role, axis) in &self.axes {
+            let at = YamlPath::root().key("axes").key(role.name());
+            let u = axis.unit().symbol();
+            let (travel_limit, speed_limit, res_limit) = match axis.unit() {
+                AxisUnit::Mm => (10_000.0, 1_000.0, 10.0),
+                AxisUnit::Deg => (36_000.0, 36_000.0, 90.0),
+            };
+            for (i, q) in axis.travel.iter().enumerate() {
+                within(
+                    at.key("travel").index(i),
+                    "travel limit",
+                    q.raw(),
+                    -travel_limit,
+                    travel_limit,
+                    u,
+                    "bench stages travel at most 10 m (or 100 turns)",
+                );
+            }
+            within(
+                at.key("max_speed"),
+                "max_speed",
+                axis.max_speed.value,
+                1e-6,
+                speed_limit,
+                &format!("{u}/s"),
+                "stages move between 1 nm/s and 1 m/s",
+            );
+            within(
+                at.key("resolution"),
+                "resolution",
+                axis.resolution.raw(),
+                1e-7,
+                res_limit,
+                u,
+                "stage steps lie between 0.1 nm and 10 mm (or 90°)",
+            );
+            if let Some(r) = axis.poll_rate {
+                within(
+                    at.key("poll_rate"),
+                    "poll_rate",
+                    r.hz(),
+                    0.1,
+                    1000.0,
+                    "Hz",
+                    "controllers answer between 0.1 and 1000 polls a second",
+                );
+            }
+            if let Some(m) = axis.microstep {
+                within(
+                    at.key("microstep"),
+                    "microstep",
+                    m,
+                    1e-9,
+                    1.0,
+                    u,
+                    "microsteps lie between 1 pm and 1 mm (or 1°)",
+                );
+            }
+        }
+        if let Some(f) = &self.force {
+            let at = YamlPath::root().key("force");
+            if let Some(r) = f.max_rate {
+                within(
+                    at.key("max_rate"),
+                    "max_rate",
+                    r.hz(),
+                    1.0,
+                    10_000.0,
+                    "Hz",
+                    "force sensors stream 1 Hz to 10 kHz (the Net F/T at most 7 kHz)",
+                );
+            }
+            for (key, v) in [
+                ("counts_per_force", f.counts_per_force),
+                ("counts_per_torque", f.counts_per_torque),
+            ] {
+                if let Some(v) = v {
+                    within(
+                        at.key(key),
+                        key,
+                        v,
+                        1e-6,
+                        1e12,
+                        "",
+                        "calibration counts per unit are positive and finite",
+                    );
+                }
+            }
+        }
+        if let Some(c) = &self.camera {
+            let at = YamlPath::root().key("camera");
+            within(
+                at.key("width"),
+                "width",
+                f64::from(c.width),
+                16.0,
+                8192.0,
+                "px",
+                "cameras deliver 16 to 8192 pixels a side",
+            );
+            within(
+                at.key("height"),
+                "height",
+                f64::from(c.height),
+                16.0,
+                8192.0,
+                "px",
+                "cameras deliver 16 to 8192 pixels a side",
+            );
+            within(
+                at.key("fps"),
+                "fps",
+                c.fps.hz(),
+                0.01,
+                1000.0,
+                "Hz",
+                "cameras run at one frame a minute to 1000 frames a second",
+            );
+        }
+        if let Some(sim) = &self.sim {
+            let at = YamlPath::root().key("sim");
+            if let Some(b) = sim.force_bias {
+                within(
+                    at.key("force_bias"),
+                    "force_bias",
+                    b.n(),
+                    0.0,
+                    10.0,
+                    "N",
+                    "a Nano17 reads at most a few newtons before a tare",
+                );
+            }
+            for (key, v) in [
+                ("normal_contact", Some(sim.normal_contact)),
+                ("grip_contact", sim.grip_contact),
+            ] {
+                if let Some(v) = v {
+                    within(
+                        at.key(key),
+                        key,
+                        v.mm(),
+                        -10_000.0,
+                        10_000.0,
+                        "mm",
+                        "a contact position inside any stage's travel",
+                    );
+                }
+            }
+        }
+        if let Some(t) = &self.twins {
+            within(
+                YamlPath::root().key("twins").key("time_scale"),
+                "time_scale",
+                t.time_scale,
+                0.01,
+                100_000.0,
+                "",
+                "slower than 1/100 a settle takes days; faster than 10⁵ the wall's millisecond is 100 s of run",
+            );
         }
         issues
     }

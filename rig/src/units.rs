@@ -437,6 +437,16 @@ pub fn fmt_value(v: f64) -> String {
     if s == "-0" { "0".to_string() } else { s }
 }
 
+/// Formats any value for a message: as [`fmt_value`] when ordinary, in scientific notation
+/// when tiny or huge (`1e-320` must not print as `0`).
+pub fn fmt_any(v: f64) -> String {
+    if v != 0.0 && (v.abs() < 1e-6 || v.abs() >= 1e15) {
+        format!("{v:e}")
+    } else {
+        fmt_value(v)
+    }
+}
+
 /// Deserializes a string quantity whose dimension must be one of `dims`.
 fn deserialize_dims<'de, D: Deserializer<'de>>(
     deserializer: D,

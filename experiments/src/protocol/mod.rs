@@ -6,6 +6,7 @@
 
 pub mod compile;
 pub mod schema;
+pub mod source;
 
 use std::path::{Path, PathBuf};
 
@@ -13,8 +14,9 @@ use rig::config::RigConfig;
 use rig::sim::{MarkerLayout, PlantSpec};
 
 use crate::diag::{Diagnostic, Severity};
-use compile::Compiled;
+use compile::{Budget, Compiled};
 use schema::{IndenterSpec, Markers, Protocol};
+use source::read;
 
 /// A protocol with its rig, checked and expanded.
 #[derive(Debug, Clone)]
@@ -71,9 +73,34 @@ impl Loaded {
     }
 }
 
+/// Top-level keys of a protocol file.
+const PROTOCOL_KEYS: &[&str] = &[
+    "name",
+    "description",
+    "rig",
+    "sensor",
+    "indenter",
+    "object",
+    "safety",
+    "record",
+    "sequence",
+];
+/// Top-level keys of a rig file.
+const RIG_KEYS: &[&str] = &[
+    "name",
+    "description",
+    "axes",
+    "force",
+    "camera",
+    "disturber",
+    "sim",
+    "twins",
+];
+
 /// Reads and checks a rig file on its own (for `gelrig probe` and `gelrig sim serve`).
 pub fn load_rig(path: &Path) -> Result<(RigConfig, String), Vec<Diagnostic>> {
     let text = read(path, "the rig file")?;
+    source::mapping(path, &text, "a rig file", RIG_KEYS)?;
     let rig = RigConfig::from_yaml_str(&text)
         .map_err(|e| vec![Diagnostic::from_yaml_error(path, &text, &e)])?;
     let diags: Vec<Diagnostic> = rig
@@ -88,28 +115,29 @@ pub fn load_rig(path: &Path) -> Result<(RigConfig, String), Vec<Diagnostic>> {
     }
 }
 
-/// Parses protocol text; the error is located in `file`.
+/// Parses protocol text; the error is located in `file`. Duplicate keys are errors, and a
+/// document that is not a mapping is reported without its content.
 pub fn parse(file: &Path, text: &str) -> Result<Protocol, Box<Diagnostic>> {
+    source::mapping(file, text, "a protocol", PROTOCOL_KEYS)
+        .map_err(|mut d| Box::new(d.remove(0)))?;
     serde_yaml::from_str::<Protocol>(text)
         .map_err(|e| Box::new(Diagnostic::from_yaml_error(file, text, &e)))
 }
 
-fn read(path: &Path, what: &str) -> Result<String, Vec<Diagnostic>> {
-    std::fs::read_to_string(path).map_err(|e| {
-        vec![Diagnostic::file_level(
-            path,
-            format!("cannot read {what}: {e}"),
-            format!(
-                "check the path `{}` and that the file is readable",
-                path.display()
-            ),
-        )]
-    })
+/// Reads, parses, resolves and checks `protocol_path` against its rig (or `rig_override`),
+/// within the default [`Budget`]. Returns every error found, located, or the loaded
+/// protocol and its warnings.
+pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded, Vec<Diagnostic>> {
+    load_with(protocol_path, rig_override, &Budget::default())
 }
 
-/// Reads, parses, resolves and checks `protocol_path` against its rig (or `rig_override`).
-/// Returns every error found, located, or the loaded protocol and its warnings.
-pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded, Vec<Diagnostic>> {
+/// [`load`] within `budget`: a protocol that would expand into more steps, or write more
+/// bytes by its plan's estimate, is refused with the numbers.
+pub fn load_with(
+    protocol_path: &Path,
+    rig_override: Option<&Path>,
+    budget: &Budget,
+) -> Result<Loaded, Vec<Diagnostic>> {
     let text = read(protocol_path, "the protocol")?;
     let mut protocol = parse(protocol_path, &text).map_err(|d| vec![*d])?;
     protocol.sensor.resolve_defaults();
@@ -128,6 +156,7 @@ pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded,
         }
     };
     let rig_text = read(&rig_path, "the rig file")?;
+    source::mapping(&rig_path, &rig_text, "a rig file", RIG_KEYS)?;
     let rig = RigConfig::from_yaml_str(&rig_text)
         .map_err(|e| vec![Diagnostic::from_yaml_error(&rig_path, &rig_text, &e)])?;
     let mut diags: Vec<Diagnostic> = rig
@@ -144,7 +173,12 @@ pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded,
             )
         })
         .collect();
-    let compiled = compile::compile(&protocol, &rig);
+    // A protocol cannot be checked against a rig that is itself wrong (reversed travel,
+    // absurd speeds): report the rig first.
+    if !diags.is_empty() {
+        return Err(diags);
+    }
+    let compiled = compile::compile_with(&protocol, &rig, budget);
     for i in &compiled.issues {
         let (file, src) = if i.in_rig {
             (&rig_path, &rig_text)
@@ -163,6 +197,29 @@ pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded,
     if diags.iter().any(Diagnostic::is_error) {
         return Err(diags);
     }
+    if let Some(d) = too_fine_to_simulate(protocol_path, &text, &protocol, &compiled, &rig) {
+        diags.push(d);
+        return Err(diags);
+    }
+    let planned = crate::plan::plan(&protocol, &compiled, &rig);
+    if planned.bytes.max > budget.max_bytes as f64 {
+        diags.push(Diagnostic::at_path(
+            protocol_path,
+            &text,
+            &rig::config::YamlPath::root().key("sequence"),
+            Severity::Error,
+            format!(
+                "the run would write up to {} ({} frames, {} force rows over {}), over the data budget of {}",
+                crate::plan::human_bytes(planned.bytes.max),
+                rig::units::fmt_value(planned.frames.max.round()),
+                rig::units::fmt_value(planned.force_rows.max.round()),
+                crate::plan::human_duration(planned.duration_s.max),
+                crate::plan::human_bytes(budget.max_bytes as f64)
+            ),
+            "check settle times, frame counts and stream rates; if the run really is that big, pass `--max-data SIZE` (e.g. `--max-data 500GB`)",
+        ));
+        return Err(diags);
+    }
     Ok(Loaded {
         path: protocol_path.to_path_buf(),
         text,
@@ -172,6 +229,37 @@ pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded,
         rig,
         compiled,
         warnings: diags,
+    })
+}
+
+/// On a rig that simulates the elastomer, an indenter whose contact model would need a grid
+/// finer than the simulator solves on (a 0.03 mm sphere on a 4.2 mm layer) is refused here,
+/// before a run spends minutes building it or runs out of memory.
+fn too_fine_to_simulate(
+    path: &Path,
+    text: &str,
+    protocol: &Protocol,
+    compiled: &Compiled,
+    rig: &RigConfig,
+) -> Option<Diagnostic> {
+    use mechanics::response::{ContactModel, MAX_GRID_SIDE};
+    if !rig.uses_sim() {
+        return None;
+    }
+    let spec = plant_spec(protocol, compiled).ok()?;
+    let side = ContactModel::grid_side(&spec.contact, &spec.quality, compiled.needs.camera);
+    (side > MAX_GRID_SIDE).then(|| {
+        Diagnostic::at_path(
+            path,
+            text,
+            &rig::config::YamlPath::root().key("indenter"),
+            Severity::Error,
+            format!(
+                "the simulated bench would solve this contact on a grid {side} cells wide (at most {MAX_GRID_SIDE}): the indenter is too small for the {} mm layer",
+                rig::units::fmt_value(spec.contact.layer.thickness_mm)
+            ),
+            "use a larger indenter, or run on a real rig",
+        )
     })
 }
 

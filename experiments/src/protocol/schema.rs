@@ -556,6 +556,19 @@ pub struct Repeat {
     pub blocks: Vec<Block>,
 }
 
+impl IndenterSpec {
+    /// Flat punches (circle, ellipse, rectangle, triangle), whose face must fit the pad.
+    pub fn is_flat(&self) -> bool {
+        matches!(
+            self,
+            IndenterSpec::FlatCircle { .. }
+                | IndenterSpec::FlatEllipse { .. }
+                | IndenterSpec::FlatRectangle { .. }
+                | IndenterSpec::FlatTriangle { .. }
+        )
+    }
+}
+
 impl Block {
     /// The block's keyword.
     pub fn keyword(&self) -> &'static str {

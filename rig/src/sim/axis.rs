@@ -27,7 +27,7 @@ impl SimAxis {
         plant: Arc<Mutex<Plant>>,
         clock: Clock,
     ) -> Self {
-        lock(&plant).add_axis(role, 0.0_f64.clamp(info.travel_min, info.travel_max));
+        lock(&plant).add_axis(role, 0.0_f64.max(info.travel_min).min(info.travel_max));
         Self {
             role,
             info,
@@ -70,7 +70,7 @@ impl Axis for SimAxis {
     }
 
     async fn home(&mut self) -> Result<(), RigError> {
-        let home = 0.0_f64.clamp(self.info.travel_min, self.info.travel_max);
+        let home = 0.0_f64.max(self.info.travel_min).min(self.info.travel_max);
         let now = self.clock.now_ns();
         lock(&self.plant).start_move(self.role, home, self.info.max_speed, now, true);
         Ok(())

@@ -17,6 +17,15 @@ macro_rules! out {
     }};
 }
 
+/// `eprintln!` that never panics: a diagnostic to a closed stderr (`gelrig validate P
+/// 2>&-`, a reader that went away) is dropped instead of aborting with exit 101.
+macro_rules! err {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($arg)*);
+    }};
+}
+
 mod cmd;
 
 use std::process::ExitCode;
@@ -72,7 +81,7 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            err!("error: {e:#}");
             ExitCode::from(1)
         }
     }

@@ -14,17 +14,44 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use experiments::Diagnostic;
-use experiments::protocol::{Loaded, load};
+use experiments::protocol::compile::Budget;
+use experiments::protocol::{Loaded, load_with};
 
 /// Exit code for an invalid protocol or rig.
 pub(crate) const EXIT_INVALID: u8 = 2;
 
-/// Loads a protocol, printing diagnostics; `Err(code)` when it has errors.
-pub(crate) fn load_or_report(protocol: &Path, rig: Option<&Path>) -> Result<Loaded, ExitCode> {
-    match load(protocol, rig) {
+/// How big a protocol may be: shared by `validate`, `plan` and `run`, so a protocol that
+/// validates also plans and runs.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub(crate) struct BudgetArgs {
+    /// Most steps the protocol may expand into [default: 100000].
+    #[arg(long, value_name = "N")]
+    max_steps: Option<u64>,
+    /// Most data the run may write by the plan's estimate, e.g. `500GB` [default: 100GB].
+    #[arg(long, value_name = "SIZE", value_parser = Budget::parse_bytes)]
+    max_data: Option<u64>,
+}
+
+impl BudgetArgs {
+    pub(crate) fn budget(&self) -> Budget {
+        let d = Budget::default();
+        Budget {
+            max_steps: self.max_steps.unwrap_or(d.max_steps),
+            max_bytes: self.max_data.unwrap_or(d.max_bytes),
+        }
+    }
+}
+
+/// Loads a protocol within `budget`, printing diagnostics; `Err(code)` when it has errors.
+pub(crate) fn load_or_report(
+    protocol: &Path,
+    rig: Option<&Path>,
+    budget: &BudgetArgs,
+) -> Result<Loaded, ExitCode> {
+    match load_with(protocol, rig, &budget.budget()) {
         Ok(loaded) => {
             for w in &loaded.warnings {
-                eprintln!("{w}\n");
+                err!("{w}\n");
             }
             Ok(loaded)
         }
@@ -38,9 +65,9 @@ pub(crate) fn load_or_report(protocol: &Path, rig: Option<&Path>) -> Result<Load
 /// Prints diagnostics and a count.
 pub(crate) fn report(diags: &[Diagnostic]) {
     for d in diags {
-        eprintln!("{d}\n");
+        err!("{d}\n");
     }
     let errors = diags.iter().filter(|d| d.is_error()).count();
     let warnings = diags.len() - errors;
-    eprintln!("{errors} error(s), {warnings} warning(s)");
+    err!("{errors} error(s), {warnings} warning(s)");
 }

@@ -11,6 +11,8 @@ pub(crate) struct Cmd {
     /// Rig file (default: the protocol's `rig:`).
     #[arg(long)]
     rig: Option<PathBuf>,
+    #[command(flatten)]
+    budget: super::BudgetArgs,
     /// Print the plan as JSON.
     #[arg(long)]
     json: bool,
@@ -18,7 +20,8 @@ pub(crate) struct Cmd {
 
 impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
-        let loaded = match super::load_or_report(&self.protocol, self.rig.as_deref()) {
+        let loaded = match super::load_or_report(&self.protocol, self.rig.as_deref(), &self.budget)
+        {
             Ok(l) => l,
             Err(code) => return Ok(code),
         };
@@ -26,7 +29,7 @@ impl Cmd {
         if self.json {
             out!("{}", serde_json::to_string_pretty(&plan)?);
         } else {
-            print!("{}", plan.render(&loaded.protocol, &loaded.rig));
+            out!("{}", plan.render(&loaded.protocol, &loaded.rig).trim_end());
         }
         Ok(ExitCode::SUCCESS)
     }

@@ -45,7 +45,7 @@ impl Cmd {
             out!("every device answered");
             Ok(ExitCode::SUCCESS)
         } else {
-            eprintln!("error: no answer from: {}", failed.join(", "));
+            err!("error: no answer from: {}", failed.join(", "));
             Ok(ExitCode::from(1))
         }
     }

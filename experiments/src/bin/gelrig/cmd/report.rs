@@ -27,7 +27,7 @@ impl Cmd {
             }
             Err(e @ ReportError::Write { .. }) => Err(e.into()),
             Err(e) => {
-                eprintln!("error: {e}");
+                err!("error: {e}");
                 Ok(ExitCode::from(super::EXIT_INVALID))
             }
         }

@@ -17,6 +17,8 @@ pub(crate) struct Cmd {
     /// Rig file (default: the protocol's `rig:`).
     #[arg(long)]
     rig: Option<PathBuf>,
+    #[command(flatten)]
+    budget: super::BudgetArgs,
     /// Directory receiving the run directory.
     #[arg(long, default_value = "runs")]
     out: PathBuf,
@@ -42,7 +44,8 @@ impl Cmd {
         // operator's interrupt always ends in a recorded stop.
         let cancel = Cancel::new();
         watch_signals(cancel.clone())?;
-        let loaded = match super::load_or_report(&self.protocol, self.rig.as_deref()) {
+        let loaded = match super::load_or_report(&self.protocol, self.rig.as_deref(), &self.budget)
+        {
             Ok(l) => l,
             Err(code) => return Ok(code),
         };
@@ -50,7 +53,7 @@ impl Cmd {
         let clock = match self.clock(&loaded, &real) {
             Ok(c) => c,
             Err(e) => {
-                eprintln!("error: {e}");
+                err!("error: {e}");
                 return Ok(ExitCode::from(super::EXIT_INVALID));
             }
         };
@@ -63,7 +66,7 @@ impl Cmd {
             ProgressMode::Auto
         };
         if cancel.count() > 0 {
-            eprintln!("interrupted before the run started: nothing ran, no run directory");
+            err!("interrupted before the run started: nothing ran, no run directory");
             return Ok(ExitCode::from(130));
         }
         // Virtual time: tokio's paused clock jumps to the next timer whenever the run waits;
@@ -98,8 +101,8 @@ impl Cmd {
         out!("{}", outcome.dir.display());
         let status = outcome.status.name();
         match &outcome.message {
-            Some(m) => eprintln!("run {status}: {m}"),
-            None => eprintln!("run {status}"),
+            Some(m) => err!("run {status}: {m}"),
+            None => err!("run {status}"),
         }
         Ok(match outcome.status {
             Status::Completed => ExitCode::SUCCESS,

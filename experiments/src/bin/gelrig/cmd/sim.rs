@@ -51,10 +51,11 @@ impl Cmd {
         } = self.action;
         let (rig, plant) = match &protocol {
             Some(p) => {
-                let loaded = match super::load_or_report(p, Some(&path)) {
-                    Ok(l) => l,
-                    Err(code) => return Ok(code),
-                };
+                let loaded =
+                    match super::load_or_report(p, Some(&path), &super::BudgetArgs::default()) {
+                        Ok(l) => l,
+                        Err(code) => return Ok(code),
+                    };
                 let spec = plant_spec(&loaded.protocol, &loaded.compiled)
                     .map_err(anyhow::Error::msg)
                     .with_context(|| format!("the elastomer of {}", p.display()))?;
@@ -70,7 +71,7 @@ impl Cmd {
             },
         };
         if protocol.is_none() && rig.force.is_some() {
-            eprintln!("note: no --protocol: the force sensor twin reads zero");
+            err!("note: no --protocol: the force sensor twin reads zero");
         }
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()

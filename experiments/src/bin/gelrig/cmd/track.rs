@@ -53,7 +53,7 @@ impl Cmd {
                 PathBuf::from("markers.csv"),
             ),
             (None, None) => {
-                eprintln!(
+                err!(
                     "error: no reference frame; fix: pass --reference REF.png (an image of the \
                      untouched gel) before the frames, or give one run directory"
                 );
@@ -70,7 +70,7 @@ impl Cmd {
             Ok(s) => s,
             Err(e @ TrackFailure::Write { .. }) => return Err(e.into()),
             Err(e) => {
-                eprintln!("error: {e}");
+                err!("error: {e}");
                 return Ok(ExitCode::from(super::EXIT_INVALID));
             }
         };

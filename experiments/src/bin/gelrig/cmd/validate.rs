@@ -11,11 +11,13 @@ pub(crate) struct Cmd {
     /// Rig file (default: the protocol's `rig:`).
     #[arg(long)]
     rig: Option<PathBuf>,
+    #[command(flatten)]
+    budget: super::BudgetArgs,
 }
 
 impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
-        match super::load_or_report(&self.protocol, self.rig.as_deref()) {
+        match super::load_or_report(&self.protocol, self.rig.as_deref(), &self.budget) {
             Ok(loaded) => {
                 out!(
                     "{}: ok ({} steps on rig {}, {} warning(s))",

@@ -1,0 +1,529 @@
+//! The blocks of a sequence: each one checked where it stands and expanded into actions.
+
+use rig::config::YamlPath;
+use rig::units::fmt_value;
+
+use super::{
+    ActionKind, ApproachSpec, Compiler, DisturbSpec, EPS, Phase, SettleSpec, Step, StreamRates,
+    Target,
+};
+use crate::protocol::schema::{Block, Direction};
+
+impl Compiler<'_> {
+    pub(super) fn block(&mut self, b: &Block, at: &YamlPath) {
+        match b {
+            Block::Home(h) => {
+                if h.axes.is_empty() {
+                    self.error(
+                        &at.key("axes"),
+                        "no axes to home",
+                        "list them, e.g. `axes: [normal, shear]`",
+                    );
+                }
+                for (k, role) in h.axes.iter().enumerate() {
+                    if let Some(axis) = self.axis(*role, &at.key("axes").index(k)) {
+                        let home = 0.0_f64.max(axis.min).min(axis.max);
+                        self.pos.insert(*role, (home, home));
+                        self.origin.insert(*role, (0.0, 0.0));
+                        self.approached.remove(role);
+                    }
+                    self.homed.insert(*role);
+                    if role.presses() {
+                        self.need_force(at, "homing a pressing axis (the safety monitor)");
+                    }
+                }
+                self.push(
+                    at,
+                    ActionKind::Home {
+                        axes: h.axes.clone(),
+                    },
+                );
+            }
+            Block::Approach(a) => {
+                self.need_force(at, "an approach");
+                let Some(axis) = self.axis(a.axis, &at.key("axis")) else {
+                    return;
+                };
+                self.homed_before(a.axis, &at.key("axis"));
+                if !self.tared {
+                    self.warn(
+                        at,
+                        "this approach compares force with its threshold before any `tare`: a sensor offset can stop it early or late",
+                        "add `- tare: {}` before the approach, with nothing touching the sensor",
+                    );
+                }
+                let from = a
+                    .from
+                    .and_then(|q| self.value(q, a.axis, &axis, &at.key("from")));
+                let max_travel = self
+                    .value(a.max_travel, a.axis, &axis, &at.key("max_travel"))
+                    .unwrap_or(0.0);
+                if max_travel <= 0.0 {
+                    self.error(
+                        &at.key("max_travel"),
+                        "max_travel must be positive",
+                        "write e.g. `3 mm`",
+                    );
+                }
+                let speed = self.speed(a.speed, a.axis, &axis, &at.key("speed"));
+                let limit = self.p.safety.max_fz.n();
+                if a.until.n() <= 0.0 || a.until.n() >= limit {
+                    self.error(
+                        &at.key("until"),
+                        format!(
+                            "the contact threshold {} must be between 0 and max_fz ({})",
+                            a.until, self.p.safety.max_fz
+                        ),
+                        "write a small force, e.g. `0.05 N`",
+                    );
+                }
+                if a.reference_frames > 0 {
+                    self.need_camera(&at.key("reference_frames"), "reference frames");
+                }
+                let (olo, ohi) = self.origin.get(&a.axis).copied().unwrap_or((0.0, 0.0));
+                let (plo, phi) = self.pos.get(&a.axis).copied().unwrap_or((olo, ohi));
+                let _ = (olo, ohi);
+                let (slo, shi) = match from {
+                    Some(f) => (f, f),
+                    None => (plo, phi),
+                };
+                self.check_travel(a.axis, &axis, slo, shi + max_travel, &at.key("max_travel"));
+                self.origin.insert(a.axis, (slo, shi + max_travel));
+                self.pos.insert(a.axis, (slo, shi + max_travel));
+                self.approached.insert(a.axis);
+                self.push(
+                    at,
+                    ActionKind::Approach(ApproachSpec {
+                        axis: a.axis,
+                        from,
+                        speed,
+                        until_n: a.until.n(),
+                        max_travel,
+                        reference_frames: a.reference_frames,
+                    }),
+                );
+            }
+            Block::Tare(t) => {
+                self.need_force(at, "a tare");
+                let d = t.duration.map(|d| d.s()).unwrap_or(1.0);
+                if d <= 0.0 {
+                    self.error(
+                        &at.key("duration"),
+                        "the tare window must be positive",
+                        "write e.g. `1 s`",
+                    );
+                }
+                self.tared = true;
+                self.push(
+                    at,
+                    ActionKind::Tare {
+                        duration_s: d.max(0.0),
+                    },
+                );
+            }
+            Block::Stepped(s) => self.stepped(s, at),
+            Block::Hold(h) => {
+                if h.duration.s() <= 0.0 {
+                    self.error(
+                        &at.key("duration"),
+                        "a hold needs a positive duration",
+                        "write e.g. `5 s`",
+                    );
+                }
+                let (window, frames) = match &h.capture {
+                    Some(c) => self.capture(c, &at.key("capture")),
+                    None => (h.duration.s().max(0.0), 0),
+                };
+                if window > h.duration.s() + EPS {
+                    self.error(
+                        &at.key("capture").key("force_window"),
+                        "the force window is longer than the hold",
+                        "shorten the window or lengthen the hold",
+                    );
+                }
+                let step = self.next_step();
+                self.push(
+                    at,
+                    ActionKind::Step(Step {
+                        step,
+                        label: h.label.clone().unwrap_or_else(|| "hold".into()),
+                        phase: Phase::Hold,
+                        axis: None,
+                        unit: None,
+                        target: None,
+                        speed: 0.0,
+                        settle: SettleSpec::Fixed {
+                            s: h.duration.s().max(0.0),
+                        },
+                        force_window_s: window.min(h.duration.s().max(0.0)),
+                        frames,
+                        disturb: None,
+                    }),
+                );
+            }
+            Block::Move(m) => self.move_block(m, at),
+            Block::Capture(c) => {
+                let window = c.force_window.map(|d| d.s()).unwrap_or(0.0);
+                if window < 0.0 {
+                    self.error(
+                        &at.key("force_window"),
+                        "the force window cannot be negative",
+                        "write e.g. `1 s`",
+                    );
+                }
+                if window > 0.0 {
+                    self.need_force(at, "a force window");
+                }
+                if c.frames > 0 {
+                    self.need_camera(&at.key("frames"), "capturing frames");
+                }
+                if c.frames == 0 && window <= 0.0 {
+                    self.warn(
+                        at,
+                        "this capture records nothing",
+                        "give it `frames:` or `force_window:`",
+                    );
+                }
+                let step = self.next_step();
+                self.push(
+                    at,
+                    ActionKind::Step(Step {
+                        step,
+                        label: c.label.clone().unwrap_or_else(|| "capture".into()),
+                        phase: Phase::Capture,
+                        axis: None,
+                        unit: None,
+                        target: None,
+                        speed: 0.0,
+                        settle: SettleSpec::Fixed { s: window.max(0.0) },
+                        force_window_s: window.max(0.0),
+                        frames: c.frames,
+                        disturb: None,
+                    }),
+                );
+            }
+            Block::Disturb(d) => {
+                self.out.needs.disturber = true;
+                if self.rig.disturber.is_none() && self.reported_missing.insert("disturber".into())
+                {
+                    self.error(
+                        at,
+                        format!(
+                            "a disturb block needs a disturber, but rig `{}` binds none",
+                            self.rig_name()
+                        ),
+                        "add `disturber: {driver: sim}` to the rig file",
+                    );
+                }
+                self.need_force(at, "a disturb block");
+                if d.force.is_none() && d.torque.is_none() {
+                    self.error(
+                        at,
+                        "a disturbance needs `force:` or `torque:`",
+                        "add e.g. `torque: 20 N·mm`",
+                    );
+                }
+                if d.frequency.hz() <= 0.0 {
+                    self.error(
+                        &at.key("frequency"),
+                        "the frequency must be positive",
+                        "write e.g. `2 Hz`",
+                    );
+                }
+                if d.duration.s() <= 0.0 {
+                    self.error(
+                        &at.key("duration"),
+                        "the duration must be positive",
+                        "write e.g. `2 s`",
+                    );
+                }
+                let step = self.next_step();
+                self.push(
+                    at,
+                    ActionKind::Step(Step {
+                        step,
+                        label: d.label.clone().unwrap_or_else(|| "disturb".into()),
+                        phase: Phase::Disturb,
+                        axis: None,
+                        unit: None,
+                        target: None,
+                        speed: 0.0,
+                        settle: SettleSpec::Fixed {
+                            s: d.duration.s().max(0.0),
+                        },
+                        force_window_s: d.duration.s().max(0.0),
+                        frames: 0,
+                        disturb: Some(DisturbSpec {
+                            force_y_n: d.force.map(|f| f.n()).unwrap_or(0.0),
+                            torque_z_nmm: d.torque.map(|t| t.nmm()).unwrap_or(0.0),
+                            frequency_hz: d.frequency.hz(),
+                            duration_s: d.duration.s().max(0.0),
+                        }),
+                    }),
+                );
+            }
+            Block::Record(r) => {
+                let rates = StreamRates {
+                    force_hz: r.force.map(|f| f.hz()),
+                    axes_hz: r.axes.map(|f| f.hz()),
+                    frames_hz: r.frames.map(|f| f.hz()),
+                };
+                if rates.is_empty() {
+                    self.warn(
+                        at,
+                        "this record block names no stream",
+                        "add `force:`, `axes:` or `frames:` rates",
+                    );
+                }
+                self.check_streams(&rates, at);
+                self.push(at, ActionKind::StreamsBegin(rates));
+                self.streams.push(rates);
+                self.blocks(&r.blocks, &at.key("blocks"));
+                self.streams.pop();
+                self.push(at, ActionKind::StreamsEnd);
+            }
+            Block::Repeat(r) => {
+                if r.times == 0 {
+                    self.error(
+                        &at.key("times"),
+                        "`times: 0` runs nothing",
+                        "write at least `times: 1`",
+                    );
+                }
+                let (was_quiet, outer_trial) = (self.quiet, self.trial);
+                for t in 0..r.times {
+                    self.trials += 1;
+                    self.trial = self.trials;
+                    self.push(at, ActionKind::TrialBegin);
+                    self.blocks(&r.blocks, &at.key("blocks"));
+                    self.push(at, ActionKind::TrialEnd);
+                    if t == 0 {
+                        self.quiet = true;
+                    }
+                }
+                self.quiet = was_quiet;
+                self.trial = outer_trial;
+            }
+        }
+    }
+
+    pub(super) fn stepped(&mut self, s: &crate::protocol::schema::Stepped, at: &YamlPath) {
+        let Some(axis) = self.axis(s.axis, &at.key("axis")) else {
+            return;
+        };
+        self.homed_before(s.axis, &at.key("axis"));
+        let from = self.value(s.from, s.axis, &axis, &at.key("from"));
+        let to = self.value(s.to, s.axis, &axis, &at.key("to"));
+        let step = self.value(s.step, s.axis, &axis, &at.key("step"));
+        let speed = self.speed(s.speed, s.axis, &axis, &at.key("speed"));
+        let (window, frames) = self.capture(&s.capture, &at.key("capture"));
+        let settle = self.settle(&s.settle, Some(s.axis), window, &at.key("settle"));
+        if matches!(settle, SettleSpec::Rate { .. }) {
+            self.need_force(at, "rate settling");
+        }
+        let (Some(from), Some(to), Some(step)) = (from, to, step) else {
+            return;
+        };
+        let u = axis.unit.symbol();
+        if step <= 0.0 {
+            self.error(
+                &at.key("step"),
+                "the step must be positive",
+                format!("write e.g. `0.1 {u}`"),
+            );
+            return;
+        }
+        if step < axis.resolution - EPS {
+            self.error(
+                &at.key("step"),
+                format!(
+                    "step `{}` ({} {u}) is below the {} stage's resolution {} {u}",
+                    s.step,
+                    fmt_value(step),
+                    s.axis,
+                    fmt_value(axis.resolution)
+                ),
+                format!("use a step of at least {} {u}", fmt_value(axis.resolution)),
+            );
+            return;
+        }
+        let span = to - from;
+        let n = (span.abs() / step).round();
+        if n < 1.0 {
+            self.error(
+                &at.key("to"),
+                "`to` equals `from`: there is nothing to step",
+                "set `to` at least one step away",
+            );
+            return;
+        }
+        if (n * step - span.abs()).abs() > 1e-6 * step.max(1.0) {
+            self.error(
+                &at.key("step"),
+                format!(
+                    "the span from `{}` to `{}` ({} {u}) is not a whole number of steps of {} {u}",
+                    s.from,
+                    s.to,
+                    fmt_value(span.abs()),
+                    fmt_value(step)
+                ),
+                format!(
+                    "choose `to` = {} {u} or {} {u}, or a step that divides the span",
+                    fmt_value(from + span.signum() * n.floor() * step),
+                    fmt_value(from + span.signum() * n.ceil() * step)
+                ),
+            );
+            return;
+        }
+        let ratio = step / axis.resolution;
+        if (ratio - ratio.round()).abs() > 1e-6 {
+            self.warn(
+                &at.key("step"),
+                format!(
+                    "step {} {u} is not a multiple of the stage resolution {} {u}: targets will be rounded",
+                    fmt_value(step),
+                    fmt_value(axis.resolution)
+                ),
+                "use a multiple of the resolution",
+            );
+        }
+        self.check_target(s.axis, &axis, from, &at.key("from"));
+        self.check_target(s.axis, &axis, to, &at.key("to"));
+        if n > self.max_steps as f64 {
+            // The budget check counts before expanding; this keeps a block alone in bounds.
+            self.error(
+                &at.key("step"),
+                format!(
+                    "this block steps {} times, over the step budget",
+                    fmt_value(n)
+                ),
+                "check `from`, `to` and `step`",
+            );
+            return;
+        }
+        let n = n as u32;
+        let dir = span.signum();
+        let mut targets: Vec<(Phase, f64)> = Vec::new();
+        if matches!(s.direction, Direction::Load | Direction::LoadUnload) {
+            targets.extend((1..=n).map(|k| (Phase::Load, from + dir * step * k as f64)));
+        }
+        if matches!(s.direction, Direction::Unload | Direction::LoadUnload) {
+            // Counted from `from`, so the last unloading step lands exactly on it.
+            targets.extend((1..=n).map(|k| (Phase::Unload, from + dir * step * (n - k) as f64)));
+        }
+        let label = s.label.clone().unwrap_or_else(|| "stepped".into());
+        for (phase, target) in targets {
+            let step_no = self.next_step();
+            self.push(
+                at,
+                ActionKind::Step(Step {
+                    step: step_no,
+                    label: label.clone(),
+                    phase,
+                    axis: Some(s.axis),
+                    unit: Some(axis.unit),
+                    target: Some(Target::To(target)),
+                    speed,
+                    settle,
+                    force_window_s: window,
+                    frames,
+                    disturb: None,
+                }),
+            );
+        }
+        let (olo, ohi) = self.origin.get(&s.axis).copied().unwrap_or((0.0, 0.0));
+        let last = if s.direction == Direction::Load {
+            to
+        } else {
+            from
+        };
+        self.pos.insert(s.axis, (olo + last, ohi + last));
+    }
+
+    pub(super) fn move_block(&mut self, m: &crate::protocol::schema::Move, at: &YamlPath) {
+        let Some(axis) = self.axis(m.axis, &at.key("axis")) else {
+            return;
+        };
+        self.homed_before(m.axis, &at.key("axis"));
+        if m.axis.presses() {
+            self.need_force(at, "moving a pressing axis (the safety monitor)");
+        }
+        let speed = self.speed(m.speed, m.axis, &axis, &at.key("speed"));
+        let (window, frames) = match &m.capture {
+            Some(c) => self.capture(c, &at.key("capture")),
+            None => (0.0, 0),
+        };
+        let settle = match &m.settle {
+            Some(s) => self.settle(s, Some(m.axis), window, &at.key("settle")),
+            None => {
+                if window > 0.0 {
+                    self.error(
+                        &at.key("capture").key("force_window"),
+                        "a force window needs a settle to average over",
+                        "add `settle: {fixed: …}` at least as long as the window",
+                    );
+                }
+                SettleSpec::None
+            }
+        };
+        let (olo, ohi) = self.origin.get(&m.axis).copied().unwrap_or((0.0, 0.0));
+        let (plo, phi) = self.pos.get(&m.axis).copied().unwrap_or((olo, ohi));
+        let target = match (m.to, m.by) {
+            (Some(_), Some(_)) | (None, None) => {
+                self.error(
+                    at,
+                    "a move needs exactly one of `to` and `by`",
+                    "keep one of them",
+                );
+                return;
+            }
+            (Some(q), None) => {
+                let Some(v) = self.value(q, m.axis, &axis, &at.key("to")) else {
+                    return;
+                };
+                self.check_target(m.axis, &axis, v, &at.key("to"));
+                self.pos.insert(m.axis, (olo + v, ohi + v));
+                Target::To(v)
+            }
+            (None, Some(q)) => {
+                let Some(v) = self.value(q, m.axis, &axis, &at.key("by")) else {
+                    return;
+                };
+                self.check_travel(m.axis, &axis, plo + v, phi + v, &at.key("by"));
+                if m.axis.presses()
+                    && self.approached.contains(&m.axis)
+                    && phi + v - olo >= self.thickness_mm - EPS
+                {
+                    self.error(
+                        &at.key("by"),
+                        format!(
+                            "this move can take the depth to {} mm, reaching the elastomer thickness {} mm",
+                            fmt_value(phi + v - olo),
+                            fmt_value(self.thickness_mm)
+                        ),
+                        "move by less",
+                    );
+                }
+                self.pos.insert(m.axis, (plo + v, phi + v));
+                Target::By(v)
+            }
+        };
+        let step = self.next_step();
+        self.push(
+            at,
+            ActionKind::Step(Step {
+                step,
+                label: m.label.clone().unwrap_or_else(|| "move".into()),
+                phase: Phase::Move,
+                axis: Some(m.axis),
+                unit: Some(axis.unit),
+                target: Some(target),
+                speed,
+                settle,
+                force_window_s: window,
+                frames,
+                disturb: None,
+            }),
+        );
+    }
+}

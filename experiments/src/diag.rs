@@ -96,6 +96,16 @@ impl Diagnostic {
         {
             (line, column) = (l, c);
         }
+        // A duplicate key is reported at its mapping: point at the second occurrence.
+        if let Some(key) = message
+            .split("key \"")
+            .nth(1)
+            .and_then(|r| r.split('"').next())
+            .filter(|_| message.contains("appears twice"))
+            && let Some((l, c)) = second_key_after(text, line, column, key)
+        {
+            (line, column) = (l, c);
+        }
         Self {
             severity: Severity::Error,
             file: file.to_path_buf(),
@@ -161,7 +171,7 @@ fn explain(message: &str) -> (String, String) {
         };
         return (message.to_string(), fix);
     }
-    if message.starts_with("duplicate entry") {
+    if message.contains("duplicate entry") {
         return (
             message.replace("duplicate entry", "a key appears twice in this mapping:"),
             "keep one of the two (the second used to win silently)".to_string(),
@@ -185,6 +195,33 @@ fn explain(message: &str) -> (String, String) {
          start with a special character"
             .to_string(),
     )
+}
+
+/// The second `key:` at or after (`line`, `column`), 1-based, as a key (preceded by the
+/// start of a line, a space, `{` or `,`).
+fn second_key_after(text: &str, line: usize, column: usize, key: &str) -> Option<(usize, usize)> {
+    let needle = format!("{key}:");
+    let mut seen = 0;
+    for (i, l) in text.lines().enumerate().skip(line.saturating_sub(1)) {
+        let from = if i + 1 == line {
+            column.saturating_sub(1)
+        } else {
+            0
+        };
+        let mut start = from.min(l.len());
+        while let Some(k) = l.get(start..).and_then(|rest| rest.find(&needle)) {
+            let at = start + k;
+            let before = l[..at].chars().last();
+            if before.is_none_or(|c| c == ' ' || c == '{' || c == ',' || c == '\t') {
+                seen += 1;
+                if seen == 2 {
+                    return Some((i + 1, l[..at].chars().count() + 1));
+                }
+            }
+            start = at + needle.len();
+        }
+    }
+    None
 }
 
 fn quoted_after(message: &str, prefix: &str) -> Option<String> {

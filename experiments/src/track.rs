@@ -140,16 +140,43 @@ fn write_err(path: &Path) -> impl Fn(String) -> TrackFailure + '_ {
     }
 }
 
-/// Decodes an image file to RGB8.
+/// Largest image file read, bytes: a 4K GelSight frame is a few MB as PNG.
+const MAX_IMAGE_BYTES: u64 = 256 << 20;
+/// Largest image side decoded, pixels.
+const MAX_IMAGE_SIDE: u32 = 16_384;
+
+/// Decodes an image file to RGB8. Only a regular file of at most [`MAX_IMAGE_BYTES`] is
+/// read (`gelrig track /dev/zero` used to read until memory ran out), and the decoder is
+/// bounded in size and memory.
 pub fn load_rgb(path: &Path) -> Result<(usize, usize, Vec<u8>), TrackFailure> {
-    let bytes = fs::read(path).map_err(|e| TrackFailure::Read {
+    let read_err = |detail: String| TrackFailure::Read {
         path: path.to_path_buf(),
-        detail: e.to_string(),
-    })?;
-    let img = image::load_from_memory(&bytes).map_err(|e| TrackFailure::Decode {
+        detail,
+    };
+    let meta = fs::metadata(path).map_err(|e| read_err(e.to_string()))?;
+    if !meta.is_file() {
+        return Err(read_err("not a regular file".into()));
+    }
+    if meta.len() > MAX_IMAGE_BYTES {
+        return Err(read_err(format!(
+            "{} bytes, over the {MAX_IMAGE_BYTES} bytes an image may have",
+            meta.len()
+        )));
+    }
+    let bytes = fs::read(path).map_err(|e| read_err(e.to_string()))?;
+    let decode_err = |detail: String| TrackFailure::Decode {
         path: path.to_path_buf(),
-        detail: e.to_string(),
-    })?;
+        detail,
+    };
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| decode_err(e.to_string()))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE);
+    limits.max_alloc = Some(2 << 30);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| decode_err(e.to_string()))?;
     let rgb = img.to_rgb8();
     Ok((rgb.width() as usize, rgb.height() as usize, rgb.into_raw()))
 }
@@ -248,14 +275,23 @@ fn frame_list(input: &Input) -> Result<FrameList, TrackFailure> {
                 });
             }
             entries.sort_by_key(|e| e.frame);
+            let mut files = std::collections::HashMap::new();
+            for e in &entries {
+                let path = crate::record::run_file(dir, &e.file).map_err(|d| TrackFailure::RunDir {
+                    dir: dir.clone(),
+                    detail: format!(
+                        "frames.csv, frame {}: {d}; fix: frames.csv must name files under frames/",
+                        e.frame
+                    ),
+                })?;
+                files.insert(e.frame, path);
+            }
+            let file = |e: &FrameEntry| files.get(&e.frame).cloned().unwrap_or_default();
             let list = match reference {
                 Some(r) => (
                     r.clone(),
                     None,
-                    entries
-                        .iter()
-                        .map(|e| (e.frame, dir.join(&e.file)))
-                        .collect(),
+                    entries.iter().map(|e| (e.frame, file(e))).collect(),
                 ),
                 None => {
                     let Some(first) = entries.iter().find(|e| e.step == 0) else {
@@ -268,12 +304,12 @@ fn frame_list(input: &Input) -> Result<FrameList, TrackFailure> {
                         });
                     };
                     (
-                        dir.join(&first.file),
+                        file(first),
                         Some(first.frame),
                         entries
                             .iter()
                             .filter(|e| e.frame != first.frame)
-                            .map(|e| (e.frame, dir.join(&e.file)))
+                            .map(|e| (e.frame, file(e)))
                             .collect(),
                     )
                 }

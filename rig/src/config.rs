@@ -534,7 +534,7 @@ impl RigConfig {
                         path,
                         message: format!(
                             "{what} {}{u} is outside the plausible range [{lo}, {hi}]{u}: {why}",
-                            crate::units::fmt_value(v)
+                            crate::units::fmt_any(v)
                         ),
                         fix: format!("write a value between {lo} and {hi}{u}"),
                     });

@@ -440,7 +440,9 @@ pub fn fmt_value(v: f64) -> String {
 /// Formats any value for a message: as [`fmt_value`] when ordinary, in scientific notation
 /// when tiny or huge (`1e-320` must not print as `0`).
 pub fn fmt_any(v: f64) -> String {
-    if v != 0.0 && (v.abs() < 1e-6 || v.abs() >= 1e15) {
+    if v.is_finite() && v.fract() == 0.0 && v.abs() < 1e16 {
+        format!("{v:.0}")
+    } else if v != 0.0 && (v.abs() < 1e-6 || v.abs() >= 1e9) {
         format!("{v:e}")
     } else {
         fmt_value(v)

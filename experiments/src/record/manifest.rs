@@ -107,6 +107,36 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest, String> {
     serde_yaml::from_str(&text).map_err(|e| format!("cannot parse {}: {e}", path.display()))
 }
 
+/// A file named inside a run directory (a `frames.csv` row), resolved and checked. A run
+/// directory is data — copied from a colleague, edited, or crafted — so a name such as
+/// `/etc/passwd` or `../../..` must never be opened: the name must be a relative path of
+/// plain components, stay inside `dir` once symlinks are followed, and be a regular file.
+pub fn run_file(dir: &Path, name: &str) -> Result<std::path::PathBuf, String> {
+    use std::path::Component;
+    let rel = Path::new(name);
+    if name.is_empty() || !rel.components().all(|c| matches!(c, Component::Normal(_))) {
+        return Err(format!(
+            "`{}` is not a path inside the run directory",
+            rig::quote(name)
+        ));
+    }
+    let inside = |p: &Path| {
+        p.canonicalize()
+            .map_err(|e| format!("`{}`: {e}", rig::quote(name)))
+    };
+    let (root, file) = (inside(dir)?, inside(&dir.join(rel))?);
+    if !file.starts_with(&root) {
+        return Err(format!(
+            "`{}` leads outside the run directory",
+            rig::quote(name)
+        ));
+    }
+    if !file.is_file() {
+        return Err(format!("`{}` is not a regular file", rig::quote(name)));
+    }
+    Ok(file)
+}
+
 /// True if a process still holds the run's lock (the run is really in progress).
 pub fn is_locked(dir: &Path) -> bool {
     match OpenOptions::new().write(true).open(dir.join("run.lock")) {

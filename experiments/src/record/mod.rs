@@ -30,7 +30,7 @@ use rig::{ForceSample, Frame, SimTruth, Wrench};
 
 pub use files::write_atomic;
 use files::{Appender, CsvFile, Reserve, io, write_new};
-pub use manifest::{DeviceRecord, Manifest, Status, is_locked, read_manifest};
+pub use manifest::{DeviceRecord, Manifest, Status, is_locked, read_manifest, run_file};
 pub use rows::StepRow;
 use rows::{AxesRow, ForceRow, FrameRow, MarkerTruthRow, SimStepRow, round6};
 

@@ -207,7 +207,7 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, ReportError> {
 fn first_frame_size(dir: &Path) -> Option<(usize, usize)> {
     let rows: Vec<BTreeMap<String, String>> = read_csv(&dir.join("frames.csv")).ok()?;
     let file = rows.first()?.get("file")?;
-    let (w, h) = image::image_dimensions(dir.join(file)).ok()?;
+    let (w, h) = image::image_dimensions(crate::record::run_file(dir, file).ok()?).ok()?;
     Some((w as usize, h as usize))
 }
 

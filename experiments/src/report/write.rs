@@ -881,9 +881,10 @@ fn relaxation_section(r: &Report, out: &mut Out, summary: &mut Value) -> Result<
 }
 
 fn write_md(data: &RunData, out: &Out) -> Result<(), ReportError> {
+    // Markdown renderers pass HTML through: the name is escaped here too.
     let mut md = format!(
         "# Report: {}\n\nRun `{}`.\n\n",
-        data.protocol_name,
+        esc(&data.protocol_name),
         data.dir.display()
     );
     for s in &out.sections {
@@ -901,13 +902,19 @@ fn write_md(data: &RunData, out: &Out) -> Result<(), ReportError> {
     fs::write(&p, md).map_err(|e| werr(&p)(e.to_string()))
 }
 
-/// Minimal markdown → HTML for what the sections contain: tables, bold, paragraphs.
+/// Text from data (a protocol's name, a label, a path) made inert in HTML: a protocol named
+/// `</title><script>…` must show as text, not run.
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+        .replace('\'', "&#39;")
+}
+
+/// Minimal markdown → HTML for what the sections contain: tables, bold, paragraphs. The text
+/// is escaped first, so markup can only come from `**`.
 fn md_to_html(text: &str) -> String {
-    let esc = |s: &str| {
-        s.replace('&', "&amp;")
-            .replace('<', "&lt;")
-            .replace('>', "&gt;")
-    };
     let bold = |s: String| {
         let mut o = String::new();
         for (i, part) in s.split("**").enumerate() {
@@ -964,12 +971,12 @@ fn md_to_html(text: &str) -> String {
 fn write_html(data: &RunData, out: &Out) -> Result<(), ReportError> {
     let mut html = format!(
         "<!doctype html><html><head><meta charset=\"utf-8\"><title>gelrig report: {}</title><style>body{{font-family:sans-serif;max-width:980px;margin:auto;padding:1em}}table{{border-collapse:collapse;margin:.5em 0}}td,th{{border:1px solid #ccc;padding:2px 8px;font-size:90%}}img{{max-width:100%}}</style></head><body><h1>Report: {}</h1><p>Run <code>{}</code></p>",
-        data.protocol_name,
-        data.protocol_name,
-        data.dir.display()
+        esc(&data.protocol_name),
+        esc(&data.protocol_name),
+        esc(&data.dir.display().to_string())
     );
     for s in &out.sections {
-        let _ = write!(html, "<h2>{}</h2>{}", s.title, md_to_html(&s.text));
+        let _ = write!(html, "<h2>{}</h2>{}", esc(&s.title), md_to_html(&s.text));
         for p in &s.plots {
             let file = if p.ends_with(".svg") {
                 out.dir.join(p)
@@ -984,7 +991,8 @@ fn write_html(data: &RunData, out: &Out) -> Result<(), ReportError> {
             };
             let _ = write!(
                 html,
-                "<p><img alt=\"{p}\" src=\"data:{mime};base64,{}\"></p>",
+                "<p><img alt=\"{}\" src=\"data:{mime};base64,{}\"></p>",
+                esc(p),
                 base64::engine::general_purpose::STANDARD.encode(bytes)
             );
         }

@@ -6,6 +6,7 @@
 
 mod dry_run;
 mod faults;
+mod fuzz;
 mod hostile;
 mod physics;
 mod plan;

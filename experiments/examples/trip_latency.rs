@@ -175,6 +175,8 @@ fn main() {
                         time_scale: 1.0,
                         plant: Some((spec, sim.compiled.needs.axes.clone())),
                         seed,
+                        drive_latency: std::time::Duration::ZERO,
+                        overshoot_steps: 0.0,
                     },
                 ))
                 .expect("twins");

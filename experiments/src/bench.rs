@@ -11,7 +11,7 @@ use rig::twins::modbus::{Endpoint, ModbusTwin};
 use rig::twins::netft::{NetFtTwin, TwinParams as NetFtParams};
 use rig::twins::smc100::{Smc100Twin, TwinParams as Smc100Params};
 use rig::twins::zaber::{TwinParams as ZaberParams, ZaberTwin};
-use rig::{Clock, ClockMode, OpenRequest, STATUS_SATURATED, open};
+use rig::{Clock, ClockMode, OpenRequest, RigError, STATUS_SATURATED, open};
 
 /// One device's probe result.
 #[derive(Debug, Clone, PartialEq)]
@@ -20,25 +20,46 @@ pub struct Probe {
     pub role: String,
     /// What it said about itself and its state, or why it failed.
     pub detail: String,
-    /// Whether it answered.
+    /// Whether it answered and is ready.
     pub ok: bool,
+    /// It did not answer at all (a timeout, a closed port); a device that answered with a
+    /// refusal, "busy" or a value that cannot be is not silent.
+    pub silent: bool,
 }
 
 impl Probe {
-    fn from_result(role: impl Into<String>, r: Result<String, String>) -> Self {
+    fn from_result(role: impl Into<String>, r: Result<String, RigError>) -> Self {
         let role = role.into();
         match r {
             Ok(detail) => Self {
                 role,
                 detail,
                 ok: true,
+                silent: false,
             },
-            Err(detail) => Self {
+            Err(e) => Self {
                 role,
-                detail,
+                silent: matches!(e, RigError::Timeout { .. } | RigError::Io { .. }),
+                detail: e.to_string(),
                 ok: false,
             },
         }
+    }
+
+    fn nothing_to_probe(role: impl Into<String>, what: &str) -> Self {
+        Self {
+            role: role.into(),
+            detail: format!("{what} (nothing to probe)"),
+            ok: true,
+            silent: false,
+        }
+    }
+}
+
+fn not_opened() -> RigError {
+    RigError::Unsupported {
+        device: "probe".into(),
+        detail: "not opened".into(),
     }
 }
 
@@ -61,11 +82,10 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
     for (role, cfg) in &rig.axes {
         if matches!(cfg.driver, AxisDriver::Sim | AxisDriver::Manual) {
             // Nothing answers but the operator or the in-process bench.
-            out.push(Probe {
-                role: role.to_string(),
-                detail: format!("{:?} (nothing to probe)", cfg.driver).to_lowercase(),
-                ok: true,
-            });
+            out.push(Probe::nothing_to_probe(
+                role.to_string(),
+                &format!("{:?}", cfg.driver).to_lowercase(),
+            ));
             continue;
         }
         let r = match open(rig, request(&[*role], false, false)).await {
@@ -83,21 +103,17 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
                         },
                         if s.moving { ", moving" } else { "" }
                     )),
-                    Err(e) => Err(e.to_string()),
+                    Err(e) => Err(e),
                 },
-                None => Err("not opened".into()),
+                None => Err(not_opened()),
             },
-            Err(e) => Err(e.to_string()),
+            Err(e) => Err(e),
         };
         out.push(Probe::from_result(role.to_string(), r));
     }
     if let Some(f) = &rig.force {
         if matches!(f.driver, ForceDriver::Sim) {
-            out.push(Probe {
-                role: "force".into(),
-                detail: "sim (nothing to probe)".into(),
-                ok: true,
-            });
+            out.push(Probe::nothing_to_probe("force", "sim"));
         } else {
             let r = match open(rig, request(&[], true, false)).await {
                 Ok(mut o) => match o.force.as_mut() {
@@ -110,22 +126,18 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
                             x.wrench.tz_nmm,
                             x.status
                         )),
-                        Err(e) => Err(e.to_string()),
+                        Err(e) => Err(e),
                     },
-                    None => Err("not opened".into()),
+                    None => Err(not_opened()),
                 },
-                Err(e) => Err(e.to_string()),
+                Err(e) => Err(e),
             };
             out.push(Probe::from_result("force", r));
         }
     }
     if let Some(c) = &rig.camera {
         if matches!(c.driver, CameraDriver::Sim) {
-            out.push(Probe {
-                role: "camera".into(),
-                detail: "sim (nothing to probe)".into(),
-                ok: true,
-            });
+            out.push(Probe::nothing_to_probe("camera", "sim"));
         } else {
             let r = match open(rig, request(&[], false, true)).await {
                 Ok(mut o) => match o.camera.as_mut() {
@@ -137,11 +149,11 @@ pub async fn probe(rig: &RigConfig) -> Vec<Probe> {
                             f.height,
                             f.seq
                         )),
-                        Err(e) => Err(e.to_string()),
+                        Err(e) => Err(e),
                     },
-                    None => Err("not opened".into()),
+                    None => Err(not_opened()),
                 },
-                Err(e) => Err(e.to_string()),
+                Err(e) => Err(e),
             };
             out.push(Probe::from_result("camera", r));
         }
@@ -160,6 +172,12 @@ pub struct ServeOptions {
     pub plant: Option<(PlantSpec, BTreeSet<AxisRole>)>,
     /// Seed of the plant's noise and sensor offset.
     pub seed: u64,
+    /// How the stage twins behave around a move, like real drives: BUSY shown this long
+    /// after the command (plant time: divided by the time scale on the wall), and a landing this many device steps past the
+    /// target (Zaber microsteps, SMC100 and Modbus steps of the axis resolution).
+    pub drive_latency: std::time::Duration,
+    /// See `drive_latency`.
+    pub overshoot_steps: f64,
 }
 
 /// A stage's position in its axis unit (mm or deg), read from its twin.
@@ -183,6 +201,12 @@ pub struct Served {
 /// run inside a tokio runtime, which serves Modbus TCP for as long as the twins live.
 pub async fn serve(rig: &RigConfig, options: ServeOptions) -> Result<Served, String> {
     let scale = options.time_scale;
+    let timing = |step: f64| rig::twins::motion::Timing {
+        // Plant time, like everything a twin simulates: K× faster on the wall.
+        delay_before_busy: options.drive_latency.div_f64(scale.max(1e-9)),
+        settle_to_in_position: std::time::Duration::from_millis(5),
+        overshoot: options.overshoot_steps * step,
+    };
     if !(scale.is_finite() && scale > 0.0) {
         return Err(format!("time scale {scale} must be a positive number"));
     }
@@ -208,6 +232,7 @@ pub async fn serve(rig: &RigConfig, options: ServeOptions) -> Result<Served, Str
                 listing.push(format!("{role}: zaber twin on {}", twin.path()));
                 let at = twin.position_probe();
                 probes.push((*role, Box::new(move || at() * step)));
+                twin.set_timing(timing(1.0));
                 zaber.push(twin);
             }
             AxisDriver::Smc100 => {
@@ -221,6 +246,7 @@ pub async fn serve(rig: &RigConfig, options: ServeOptions) -> Result<Served, Str
                 cfg.port = Some(twin.path().to_string());
                 listing.push(format!("{role}: smc100 twin on {}", twin.path()));
                 probes.push((*role, Box::new(twin.position_probe())));
+                twin.set_timing(timing(cfg.resolution.raw()));
                 smc100.push(twin);
             }
             AxisDriver::Modbus => {
@@ -243,6 +269,7 @@ pub async fn serve(rig: &RigConfig, options: ServeOptions) -> Result<Served, Str
                 listing.push(format!("{role}: modbus {kind} twin at {}", twin.address()));
                 let at = twin.position_probe();
                 probes.push((*role, Box::new(move || at() / per)));
+                twin.set_timing(timing(1.0));
                 modbus.push(twin);
             }
             AxisDriver::Sim | AxisDriver::Manual => {}

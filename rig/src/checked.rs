@@ -192,6 +192,7 @@ mod tests {
             position,
             moving: false,
             referenced,
+            in_position: None,
         }
     }
 

@@ -12,7 +12,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::device::ForceRange;
-use crate::units::{AxisQuantity, AxisSpeed, AxisUnit, Force, Frequency, Length};
+use crate::units::{AxisQuantity, AxisSpeed, AxisUnit, Duration, Force, Frequency, Length};
 
 /// The part an axis plays on the bench.
 #[derive(
@@ -120,6 +120,19 @@ pub struct AxisConfig {
     /// How often to poll position while moving (default 20 Hz).
     #[serde(default)]
     pub poll_rate: Option<Frequency>,
+    /// A move is done only at rest within this distance of its target (default: the
+    /// resolution; a drive's in-position window, where wider).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub in_position: Option<AxisQuantity>,
+    /// How long a move may show no motion before it counts as not started, when it is not
+    /// already at its target (default 0.5 s: real drives show motion within milliseconds
+    /// to a few hundred of them).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_grace: Option<Duration>,
+    /// Times a move that ends away from its target (or never starts) is sent again before
+    /// the run fails (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub move_retries: Option<u32>,
     /// Serial device of a `zaber` or `smc100` axis (`/dev/ttyUSB0`; a twin's `/dev/pts/N`).
     #[serde(default)]
     pub port: Option<String>,
@@ -155,6 +168,22 @@ impl AxisConfig {
     /// Position poll rate in Hz.
     pub fn poll_rate_hz(&self) -> f64 {
         self.poll_rate.map(|f| f.hz()).unwrap_or(20.0)
+    }
+
+    /// How close to its target a move must end, in the axis unit (infinite for a manual
+    /// axis: the operator types where it is).
+    pub fn in_position_window(&self) -> f64 {
+        if matches!(self.driver, AxisDriver::Manual) {
+            return f64::INFINITY;
+        }
+        self.in_position
+            .map(|q| q.raw())
+            .unwrap_or(self.resolution.raw())
+    }
+
+    /// How long a move may show no motion before it counts as not started, s.
+    pub fn start_grace_s(&self) -> f64 {
+        self.start_grace.map(|d| d.s()).unwrap_or(0.5)
     }
 }
 
@@ -585,6 +614,52 @@ impl RigConfig {
                     1000.0,
                     "Hz",
                     "controllers answer between 0.1 and 1000 polls a second",
+                );
+            }
+            if let Some(w) = axis.in_position
+                && (matches!(w, AxisQuantity::Percent(_)) || w.natural_unit() != axis.unit())
+            {
+                // Out of every range: a window in another unit is never right.
+                within(
+                    at.key("in_position"),
+                    "in_position (not in the axis unit)",
+                    f64::NAN,
+                    0.0,
+                    0.0,
+                    u,
+                    "write it in the axis unit",
+                );
+            } else if let Some(w) = axis.in_position {
+                within(
+                    at.key("in_position"),
+                    "in_position",
+                    w.raw(),
+                    axis.resolution.raw() * (1.0 - 1e-9),
+                    res_limit * 10.0,
+                    u,
+                    "an in-position window is at least the resolution and at most a few steps of the stage",
+                );
+            }
+            if let Some(g) = axis.start_grace {
+                within(
+                    at.key("start_grace"),
+                    "start_grace",
+                    g.s(),
+                    0.0,
+                    60.0,
+                    "s",
+                    "drives show motion within a minute of a command",
+                );
+            }
+            if let Some(n) = axis.move_retries {
+                within(
+                    at.key("move_retries"),
+                    "move_retries",
+                    f64::from(n),
+                    0.0,
+                    10.0,
+                    "",
+                    "a move that misses ten times will miss again",
                 );
             }
             if let Some(m) = axis.microstep {

@@ -70,6 +70,9 @@ pub struct AxisStatus {
     pub moving: bool,
     /// True once homed; moves are refused before.
     pub referenced: bool,
+    /// The drive's in-position flag, where it has one (a Modbus drive's IN-POS bit): a
+    /// move is done only once it is set. `None` for devices without such a flag.
+    pub in_position: Option<bool>,
 }
 
 /// Stops an axis without waiting for whoever owns it.

@@ -24,12 +24,19 @@ fn map(address: String, slave: u8) -> ModbusMap {
         slave,
         word_order: WordOrder::HighFirst,
         steps_per_unit: 500.0,
-        target: 0x005C,
-        speed: 0x005E,
-        trigger: RegWrite {
+        target: Some(0x005C),
+        speed: Some(0x005E),
+        trigger: Some(RegWrite {
             addr: 0x0066,
             value: 1,
-        },
+        }),
+        move_writes: Vec::new(),
+        on_open: Vec::new(),
+        acceleration: None,
+        deceleration: None,
+        current: None,
+        in_position_bit: None,
+        busy_retry_ms: Some(300),
         position: 0x0120,
         status: 0x007F,
         busy_bit: 8,
@@ -211,7 +218,7 @@ axes:
         .collect();
     assert!(
         text.iter()
-            .any(|t| t.contains("speed") && t.contains("also `target`")),
+            .any(|t| t.contains("modbus.target") && t.contains("writes register 0x005d twice")),
         "{text:?}"
     );
     assert!(text.iter().any(|t| t.contains("alarm_bit")), "{text:?}");
@@ -224,5 +231,140 @@ axes:
         rig.check()
             .iter()
             .any(|i| i.message.contains("register map"))
+    );
+}
+
+/// The AZ-true map (long form, as in `sim-wire.yaml`) on `address` or an RTU `port`.
+fn az_map(address: Option<String>, port: Option<String>) -> ModbusMap {
+    use rig::drivers::modbus::{Field, Placeholder, WriteStep};
+    let values = vec![
+        Field::Number(0),
+        Field::Number(1),
+        Field::Value(Placeholder::Position),
+        Field::Value(Placeholder::Speed),
+        Field::Value(Placeholder::Acceleration),
+        Field::Value(Placeholder::Deceleration),
+        Field::Value(Placeholder::Current),
+        Field::Number(1),
+    ];
+    ModbusMap {
+        address,
+        port,
+        target: None,
+        speed: None,
+        trigger: None,
+        move_writes: vec![WriteStep {
+            write: 0x0058,
+            values,
+            width: 32,
+        }],
+        acceleration: Some(30_000),
+        deceleration: Some(30_000),
+        current: Some(1000),
+        in_position_bit: Some(14),
+        ..map(String::new(), 1)
+    }
+}
+
+/// Both transports answer a function the drive does not implement (FC4, read input
+/// registers) with exception 01, as Modbus requires — the RTU twin used to stay silent.
+#[tokio::test]
+async fn unsupported_functions_answer_illegal_function_on_both_transports() {
+    use std::io::{Read, Write};
+    let twin = ModbusTwin::spawn(az_map(None, None), (-18000, 18000), 1.0)
+        .await
+        .expect("twin");
+    let addr: std::net::SocketAddr = twin.address().parse().expect("address");
+    let mut ctx = tokio_modbus::client::tcp::connect_slave(addr, tokio_modbus::Slave(1))
+        .await
+        .expect("connects");
+    use tokio_modbus::client::Reader;
+    let r = ctx.read_input_registers(0x0120, 2).await.expect("answered");
+    assert_eq!(r, Err(tokio_modbus::ExceptionCode::IllegalFunction));
+
+    let rtu = ModbusTwin::spawn_rtu(az_map(None, None), (-18000, 18000), 1.0).expect("twin");
+    let mut port = serialport::new(rtu.address(), 19200)
+        .timeout(Duration::from_millis(500))
+        .open_native()
+        .expect("opens the pty");
+    // Unit 1, FC4, address 0x0120, 2 registers, CRC-16/MODBUS low byte first.
+    let mut frame = vec![1u8, 4, 0x01, 0x20, 0, 2];
+    let crc = crc::Crc::<u16>::new(&crc::CRC_16_MODBUS).checksum(&frame);
+    frame.extend(crc.to_le_bytes());
+    port.write_all(&frame).expect("writes");
+    let mut reply = [0u8; 5];
+    port.read_exact(&mut reply).expect("an answer, not silence");
+    assert_eq!(
+        &reply[..3],
+        &[1, 0x84, 0x01],
+        "exception 01 to FC4: {reply:?}"
+    );
+}
+
+/// The AZ twin takes the direct-data block (one FC16 of 16 registers) and moves; a lone
+/// `0x0066 := 1` leaves the 32-bit trigger at 0x00010000 and does nothing; exception 06
+/// once on a trigger is asked again and the move goes through; exception 03 is a refusal
+/// naming the registers and values written.
+#[tokio::test]
+async fn the_az_block_moves_a_lone_trigger_does_not_and_busy_is_asked_again() {
+    use rig::twins::motion::Timing;
+    let twin = ModbusTwin::spawn(az_map(None, None), (-18000, 18000), 1.0)
+        .await
+        .expect("twin");
+    let deg = |max: f64| AxisInfo {
+        role: "rotation".into(),
+        unit: AxisUnit::Deg,
+        travel_min: -max,
+        travel_max: max,
+        max_speed: 100.0,
+        resolution: 0.01,
+        identity: String::new(),
+    };
+    let mut a = ModbusAxis::open(az_map(Some(twin.address()), None), deg(180.0))
+        .await
+        .expect("opens");
+    a.home().await.expect("home");
+    wait_idle(&mut a).await;
+    a.move_to(1.5, 50.0).await.expect("block write");
+    assert!((wait_idle(&mut a).await - 1.5).abs() < 1e-9);
+    assert!((twin.position_steps() - 750.0).abs() < 1e-9);
+    // A short-form map against the same drive: the writes are accepted, nothing moves.
+    let short = ModbusMap {
+        target: Some(0x005C),
+        speed: Some(0x005E),
+        trigger: Some(RegWrite {
+            addr: 0x0066,
+            value: 1,
+        }),
+        move_writes: Vec::new(),
+        ..az_map(Some(twin.address()), None)
+    };
+    let mut b = ModbusAxis::open(short, deg(180.0)).await.expect("opens");
+    b.move_to(3.0, 50.0).await.expect("accepted");
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    assert!(
+        (twin.position_steps() - 750.0).abs() < 1e-9,
+        "a lone trigger moved it to {}",
+        twin.position_steps()
+    );
+    // Busy once on the trigger: asked again, and the move happens.
+    twin.set_timing(Timing::default());
+    lock(&twin.faults).busy_replies = 1;
+    a.move_to(2.0, 50.0)
+        .await
+        .expect("busy once is not a refusal");
+    assert!((wait_idle(&mut a).await - 2.0).abs() < 1e-9);
+    // Beyond the drive's limits: a refusal naming what was written.
+    let mut small = ModbusAxis::open(az_map(Some(twin.address()), None), deg(300.0))
+        .await
+        .expect("opens");
+    let e = small
+        .move_to(250.0, 50.0)
+        .await
+        .expect_err("beyond the drive");
+    let text = e.to_string();
+    assert!(
+        text.contains("write 0x0058..0x0067") && text.contains("exception 03"),
+        "{text}"
     );
 }

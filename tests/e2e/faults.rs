@@ -10,7 +10,9 @@ use experiments::record::Status;
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
-use crate::support::{csv_rows, gelrig, manifest, protocol};
+use crate::support::{
+    csv_rows, gelrig, manifest, protocol, run_on_real_rig, wait_for_event, wait_for_event_within,
+};
 
 /// Runs `script` (sh) in a private mount namespace where a tmpfs of `size` is mounted on
 /// `$FS`; `None` (with a visible skip line) where this machine allows no mount namespace.
@@ -377,73 +379,6 @@ fn the_watchdog_stops_the_stage_while_the_plan_waits_on_it() {
             .any(|l| l.starts_with("> ") && l.contains(" 99 stop")),
         "no stop with the watchdog's id: {transcript:?}"
     );
-}
-
-/// Waits (up to 30 s) for the run directory under `out` to journal `event`.
-fn wait_for_event(out: &Path, event: &str) -> bool {
-    wait_for_event_within(out, event, Duration::from_secs(30))
-}
-
-/// Waits up to `limit` for the run directory under `out` to journal `event`.
-fn wait_for_event_within(out: &Path, event: &str, limit: Duration) -> bool {
-    let deadline = Instant::now() + limit;
-    let needle = format!("\"event\":\"{event}\"");
-    while Instant::now() < deadline {
-        let seen = std::fs::read_dir(out)
-            .ok()
-            .and_then(|mut d| d.next())
-            .is_some_and(|e| {
-                std::fs::read_to_string(e.unwrap().path().join("journal.jsonl"))
-                    .is_ok_and(|j| j.contains(&needle))
-            });
-        if seen {
-            return true;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    false
-}
-
-/// Runs protocol `p` on rig file `rig` in-process on the monotonic clock (as `gelrig run`
-/// does for a real bench), with `meanwhile` running on a thread given the runs folder.
-fn run_on_real_rig(
-    rig: &Path,
-    p: &Path,
-    meanwhile: impl FnOnce(PathBuf) + Send + 'static,
-) -> experiments::runner::RunOutcome {
-    let loaded = experiments::protocol::load(p, Some(rig)).unwrap_or_else(|d| {
-        panic!(
-            "{}",
-            d.iter()
-                .map(|d| d.to_string())
-                .collect::<Vec<_>>()
-                .join("\n")
-        )
-    });
-    let out = p.parent().unwrap().join("runs");
-    let out2 = out.clone();
-    let side = std::thread::spawn(move || meanwhile(out2));
-    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let outcome = rt
-        .block_on(experiments::runner::run(
-            experiments::runner::RunRequest {
-                loaded: &loaded,
-                plan: &plan,
-                out,
-                seed: 0,
-                clock: rig::ClockMode::Monotonic,
-                progress: experiments::progress::ProgressMode::Quiet,
-            },
-            experiments::runner::Cancel::new(),
-        ))
-        .unwrap();
-    side.join().unwrap();
-    outcome
 }
 
 /// A Net F/T twin with Nano17 ranges, counts per unit not 1e6.

@@ -8,6 +8,8 @@ mod dry_run;
 mod faults;
 mod fuzz;
 mod hostile;
+mod motion;
+mod peers;
 mod physics;
 mod plan;
 mod report;

@@ -221,3 +221,96 @@ pub(crate) fn image_size(path: &Path) -> (u32, u32) {
         u32::from_be_bytes(bytes[20..24].try_into().unwrap()),
     )
 }
+
+/// Waits (up to 30 s) for the run directory under `out` to journal `event`.
+pub(crate) fn wait_for_event(out: &Path, event: &str) -> bool {
+    wait_for_event_within(out, event, std::time::Duration::from_secs(30))
+}
+
+/// Waits up to `limit` for the run directory under `out` to journal `event`.
+pub(crate) fn wait_for_event_within(out: &Path, event: &str, limit: std::time::Duration) -> bool {
+    let deadline = std::time::Instant::now() + limit;
+    let needle = format!("\"event\":\"{event}\"");
+    while std::time::Instant::now() < deadline {
+        let seen = std::fs::read_dir(out)
+            .ok()
+            .and_then(|mut d| d.next())
+            .is_some_and(|e| {
+                std::fs::read_to_string(e.unwrap().path().join("journal.jsonl"))
+                    .is_ok_and(|j| j.contains(&needle))
+            });
+        if seen {
+            return true;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    false
+}
+
+/// Runs protocol `p` on rig file `rig` in-process on the monotonic clock (as `gelrig run`
+/// does for a real bench), with `meanwhile` running on a thread given the runs folder.
+pub(crate) fn run_on_real_rig(
+    rig: &Path,
+    p: &Path,
+    meanwhile: impl FnOnce(std::path::PathBuf) + Send + 'static,
+) -> experiments::runner::RunOutcome {
+    let loaded = experiments::protocol::load(p, Some(rig)).unwrap_or_else(|d| {
+        panic!(
+            "{}",
+            d.iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join("\n")
+        )
+    });
+    let out = p.parent().unwrap().join("runs");
+    let out2 = out.clone();
+    let side = std::thread::spawn(move || meanwhile(out2));
+    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let outcome = rt
+        .block_on(experiments::runner::run(
+            experiments::runner::RunRequest {
+                loaded: &loaded,
+                plan: &plan,
+                out,
+                seed: 0,
+                clock: rig::ClockMode::Monotonic,
+                progress: experiments::progress::ProgressMode::Quiet,
+            },
+            experiments::runner::Cancel::new(),
+        ))
+        .unwrap();
+    side.join().unwrap();
+    outcome
+}
+
+/// `sim-wire.yaml`'s rotation axis (the AZ-true Modbus map), with `edit` applied to its
+/// `modbus:` mapping.
+pub(crate) fn sim_wire_rotation(edit: impl FnOnce(&mut serde_yaml::Mapping)) -> serde_yaml::Value {
+    let text = std::fs::read_to_string(root().join("protocols/rigs/sim-wire.yaml")).unwrap();
+    let doc: serde_yaml::Value = serde_yaml::from_str(&text).unwrap();
+    let mut axis = doc["axes"]["rotation"].clone();
+    if let Some(m) = axis["modbus"].as_mapping_mut() {
+        edit(m);
+    }
+    axis
+}
+
+/// Turns an AZ-true (long form) map into the short form whose lone trigger write
+/// `0x0066 := 1` an AZ ignores.
+pub(crate) fn to_short_form(m: &mut serde_yaml::Mapping) {
+    for k in ["move", "acceleration", "deceleration", "current"] {
+        m.remove(k);
+    }
+    m.insert("target".into(), 0x005C.into());
+    m.insert("speed".into(), 0x005E.into());
+    let mut trigger = serde_yaml::Mapping::new();
+    trigger.insert("addr".into(), 0x0066.into());
+    trigger.insert("value".into(), 1.into());
+    m.insert("trigger".into(), trigger.into());
+}

@@ -120,7 +120,8 @@ impl Exec<'_> {
             fmt_value((start * 1e6).round() / 1e6),
             fmt_value(speed)
         );
-        let deadline = self.deadline_for(axis, max_travel, speed, what);
+        let mut deadline = self.deadline_for(axis, max_travel, speed, what);
+        deadline.arrival = Some(self.arrival(axis, start + max_travel, speed));
         self.wait(&mut Until::Contact {
             channel,
             threshold: until_n,

@@ -23,6 +23,8 @@ pub(super) struct Exec<'a> {
     pub(super) progress: &'a Progress,
     pub(super) cancel: Cancel,
     pub(super) poll_period_ns: BTreeMap<AxisRole, u64>,
+    /// The rig file's axes (in-position windows, start grace, retries).
+    pub(super) loaded_axes: BTreeMap<AxisRole, rig::config::AxisConfig>,
     pub(super) retract_to: BTreeMap<AxisRole, f64>,
     pub(super) tare: Wrench,
     pub(super) origin: BTreeMap<AxisRole, f64>,
@@ -63,6 +65,7 @@ impl<'a> Exec<'a> {
                 .iter()
                 .map(|(r, a)| (*r, super::period_ns(a.poll_rate_hz())))
                 .collect(),
+            loaded_axes: loaded.rig.axes.clone(),
             retract_to: loaded
                 .protocol
                 .safety

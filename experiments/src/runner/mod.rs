@@ -84,6 +84,8 @@ enum Stop {
     NoContact(String),
     #[error("{0}")]
     Stuck(String),
+    #[error("{0}")]
+    Missed(String),
     #[error(transparent)]
     Device(#[from] RigError),
     #[error("recording failed: {0}")]
@@ -97,6 +99,7 @@ impl Stop {
             Stop::Blind(_)
             | Stop::NoContact(_)
             | Stop::Stuck(_)
+            | Stop::Missed(_)
             | Stop::Device(_)
             | Stop::Record(_) => Status::Failed,
         }

@@ -1,5 +1,16 @@
 //! Moving axes with deadlines, reading them, and the axes and frame streams.
 //!
+//! **A move ends only where it was sent.** It is done when the device reports rest (and
+//! in-position, where it has such a flag) *and* the position it reads is within the axis's
+//! in-position window of the target (its resolution unless the rig file says `in_position`).
+//! Real drives take milliseconds to show motion after a trigger: a first status of "not
+//! busy" away from the target is not an arrival but a move that has not started yet, and it
+//! is polled again for the axis's `start_grace` (0.5 s). A move that never shows motion, or
+//! comes to rest elsewhere, is sent again `move_retries` times (rig file, default 0) and then
+//! fails the run naming axis, target and position — the step is never recorded as reached.
+//! (A drive once raised BUSY 20 ms after its trigger and a run recorded 0.28 deg for a 1 deg
+//! step.)
+//!
 //! A move's deadline is its nominal duration (distance / speed) times 1.5 plus a grace of
 //! [`MOVE_GRACE_S`]: real stages accelerate and settle, and serial polling adds latency, but
 //! a stage still busy long after that is stuck (a jam, a stalled motor, a controller that
@@ -8,10 +19,32 @@
 use rig::RigError;
 use rig::config::AxisRole;
 use rig::units::fmt_value;
+use serde_json::json;
 
 use super::Stop;
 use super::exec::Exec;
 use super::wait::{Deadline, Until};
+
+/// Where a move must come to rest, and how it is judged.
+#[derive(Debug, Clone)]
+pub(super) struct Arrival {
+    /// Absolute target, axis unit.
+    pub(super) target: f64,
+    /// In-position window, axis unit.
+    pub(super) window: f64,
+    /// Speed it was sent at (to send it again).
+    pub(super) speed: f64,
+    /// When the move was sent, ns.
+    pub(super) sent_ns: u64,
+    /// How long it may show no motion, ns.
+    pub(super) grace_ns: u64,
+    /// The device has reported motion since it was sent.
+    pub(super) seen_moving: bool,
+    /// Sends left before a miss fails the run.
+    pub(super) retries_left: u32,
+    /// mm or deg.
+    pub(super) unit: &'static str,
+}
 
 /// Slack on every move's deadline, s: acceleration, settling and polling latency.
 pub(super) const MOVE_GRACE_S: f64 = 5.0;
@@ -37,7 +70,101 @@ impl Exec<'_> {
             by_ns: self.now() + (allowed_s * 1e9) as u64,
             allowed_s,
             what,
+            arrival: None,
         }
+    }
+
+    /// How `axis` judges arrivals: its rig file's window, grace and retries.
+    pub(super) fn arrival(&self, axis: AxisRole, target: f64, speed: f64) -> Arrival {
+        let cfg = self.loaded_axes.get(&axis);
+        Arrival {
+            target,
+            window: cfg.map(|c| c.in_position_window()).unwrap_or(0.0) * (1.0 + 1e-9) + 1e-12,
+            speed,
+            sent_ns: self.now(),
+            grace_ns: (cfg.map(|c| c.start_grace_s()).unwrap_or(0.5) * 1e9) as u64,
+            seen_moving: false,
+            retries_left: cfg.and_then(|c| c.move_retries).unwrap_or(0),
+            unit: cfg.map(|c| c.unit().symbol()).unwrap_or(""),
+        }
+    }
+
+    /// Polls every axis of `watch` once: `true` when all have arrived (at rest, in
+    /// position, within the window of their target). A move that shows no motion past its
+    /// grace away from its target, or comes to rest elsewhere, is sent again while retries
+    /// are left, then fails the run.
+    pub(super) async fn arrived(&mut self, watch: &mut [Deadline], now: u64) -> Result<bool, Stop> {
+        let mut all = true;
+        for d in watch.iter_mut() {
+            let Some(ax) = self.rig.axes.get_mut(&d.axis) else {
+                continue;
+            };
+            let st = ax.status().await?;
+            let Some(a) = d.arrival.as_mut() else {
+                all &= !st.moving;
+                continue;
+            };
+            if st.moving {
+                a.seen_moving = true;
+                all = false;
+                continue;
+            }
+            let off = (st.position - a.target).abs();
+            let settled = st.in_position != Some(false);
+            if off <= a.window {
+                all &= settled;
+                continue;
+            }
+            if !a.seen_moving && now.saturating_sub(a.sent_ns) < a.grace_ns {
+                // Not started yet: real drives take a moment to show motion.
+                all = false;
+                continue;
+            }
+            let why = if a.seen_moving {
+                format!(
+                    "came to rest at {} {u}, not at its target {} {u} (in-position window {} {u})",
+                    fmt_value((st.position * 1e6).round() / 1e6),
+                    fmt_value(a.target),
+                    fmt_value(a.window),
+                    u = a.unit
+                )
+            } else {
+                format!(
+                    "showed no motion {} s after the move to {} {u} was sent and rests at {} {u}",
+                    fmt_value(a.grace_ns as f64 * 1e-9),
+                    fmt_value(a.target),
+                    fmt_value((st.position * 1e6).round() / 1e6),
+                    u = a.unit
+                )
+            };
+            if a.retries_left > 0 {
+                a.retries_left -= 1;
+                a.seen_moving = false;
+                a.sent_ns = now;
+                let (target, speed) = (a.target, a.speed);
+                let axis = d.axis;
+                self.progress
+                    .note(&format!("the {axis} axis {why}; sending the move again"));
+                self.rec.journal(
+                    now,
+                    "move_retry",
+                    json!({ "axis": axis, "target": target, "position": st.position, "why": why }),
+                    true,
+                )?;
+                if let Some(ax) = self.rig.axes.get_mut(&axis) {
+                    ax.move_to(target, speed).await?;
+                }
+                all = false;
+                continue;
+            }
+            return Err(Stop::Missed(format!(
+                "the {} axis {why} ({}); nothing is recorded as reached; fix: check the drive's \
+                 register map and in-position settings, the rig file's `in_position` and \
+                 `start_grace`, or allow `move_retries`",
+                d.axis, d.what
+            )));
+        }
+        Ok(all)
     }
 
     /// Moves `axis` to `target_abs` at `speed` and waits until it is at rest, by its deadline.
@@ -63,7 +190,8 @@ impl Exec<'_> {
             fmt_value((target_abs * 1e6).round() / 1e6),
             fmt_value(speed)
         );
-        let deadline = self.deadline_for(axis, target_abs - here, speed, what);
+        let mut deadline = self.deadline_for(axis, target_abs - here, speed, what);
+        deadline.arrival = Some(self.arrival(axis, target_abs, speed));
         self.wait(&mut Until::Motion(vec![deadline])).await
     }
 
@@ -75,11 +203,14 @@ impl Exec<'_> {
                 let info = ax.info().clone();
                 ax.home().await?;
                 let allowed_s = home_allowance_s(info.travel_max - info.travel_min, info.max_speed);
+                // Homing ends at the stage zero, the axis origin from here on.
+                let home = 0.0_f64.max(info.travel_min).min(info.travel_max);
                 watch.push(Deadline {
                     axis: *a,
                     by_ns: self.now() + (allowed_s * 1e9) as u64,
                     allowed_s,
                     what: "homing".into(),
+                    arrival: Some(self.arrival(*a, home, info.max_speed)),
                 });
             }
             self.origin.insert(*a, 0.0);

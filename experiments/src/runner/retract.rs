@@ -7,15 +7,15 @@ use rig::config::AxisRole;
 use rig::units::fmt_value;
 use serde_json::json;
 
+use super::Stop;
 use super::exec::Exec;
 use super::wait::Until;
 
 impl Exec<'_> {
-    /// Moves `group` to their retract positions together and waits, with a deadline from
-    /// distance and speed.
+    /// Moves `group` to their retract positions together and waits until each has arrived
+    /// (the same completion rule as any move), each by its deadline.
     async fn retract_group(&mut self, group: &[(AxisRole, f64)], errors: &mut Vec<String>) {
-        let mut moving = Vec::new();
-        let mut deadline_s: f64 = 5.0;
+        let mut watch = Vec::new();
         for &(role, target) in group {
             let Some(ax) = self.rig.axes.get_mut(&role) else {
                 continue;
@@ -36,43 +36,29 @@ impl Exec<'_> {
             };
             match ax.move_to(target, info.max_speed).await {
                 Ok(()) => {
-                    moving.push(role);
                     self.targets.insert(role, target);
-                    deadline_s = deadline_s.max(2.0 * (here - target).abs() / info.max_speed + 5.0);
+                    let what = format!(
+                        "the retract from {} to {} {u}",
+                        fmt_value((here * 1e6).round() / 1e6),
+                        fmt_value(target),
+                        u = info.unit.symbol()
+                    );
+                    let mut d = self.deadline_for(role, target - here, info.max_speed, what);
+                    d.arrival = Some(self.arrival(role, target, info.max_speed));
+                    watch.push(d);
                 }
                 Err(e) => errors.push(format!("retracting {role}: {e}")),
             }
         }
-        if moving.is_empty() {
+        if watch.is_empty() {
             return;
         }
-        let deadline = self.now() + (deadline_s * 1e9) as u64;
-        loop {
-            if self.cancel.count() >= 2 {
-                errors.push("a second interrupt abandoned the retract".into());
-                return;
+        match self.wait(&mut Until::Motion(watch)).await {
+            Ok(()) => {}
+            Err(Stop::Interrupted) => {
+                errors.push("a second interrupt abandoned the retract".into())
             }
-            match self.all_stopped(&moving).await {
-                Ok(true) => return,
-                Ok(false) => {}
-                Err(e) => {
-                    errors.push(e.to_string());
-                    return;
-                }
-            }
-            if self.now() >= deadline {
-                errors.push(format!(
-                    "the retract did not finish within {deadline_s:.0} s"
-                ));
-                return;
-            }
-            let now = self.now();
-            if self.wait(&mut Until::Time(now + 50_000_000)).await.is_err()
-                && self.cancel.count() >= 2
-            {
-                errors.push("a second interrupt abandoned the retract".into());
-                return;
-            }
+            Err(e) => errors.push(e.to_string()),
         }
     }
 

@@ -18,6 +18,8 @@ pub(super) struct Deadline {
     pub(super) allowed_s: f64,
     /// What it was doing, for the error ("a move from 9 to 10 mm at 2 mm/s").
     pub(super) what: String,
+    /// Where it must come to rest; `None` when any rest will do (a stop).
+    pub(super) arrival: Option<super::motion::Arrival>,
 }
 
 /// What [`Exec::wait`] waits for.
@@ -94,17 +96,16 @@ impl Exec<'_> {
                 }
                 Until::Motion(watch) => {
                     if now >= next_poll {
-                        let axes: Vec<AxisRole> = watch.iter().map(|d| d.axis).collect();
-                        if self.all_stopped(&axes).await? {
+                        if self.arrived(watch, now).await? {
                             return Ok(());
                         }
                         if let Some(late) = watch.iter().find(|d| now >= d.by_ns) {
                             return Err(self.stuck(late).await);
                         }
                         next_poll = now
-                            + axes
+                            + watch
                                 .iter()
-                                .map(|a| self.poll_ns(*a))
+                                .map(|d| self.poll_ns(d.axis))
                                 .min()
                                 .unwrap_or(50_000_000);
                     }
@@ -158,7 +159,9 @@ impl Exec<'_> {
                     }
                     let axis = by.axis;
                     if now >= next_poll {
-                        if self.all_stopped(&[axis]).await? {
+                        // The end of the creep, judged like any move: a first "at rest" before
+                        // the stage has shown motion is a late start, not the end.
+                        if self.arrived(std::slice::from_mut(by), now).await? {
                             return Err(Stop::NoContact(format!(
                                 "the {axis} axis reached the end of the approach without |{}| reaching {} {}",
                                 channel.name(),
@@ -207,17 +210,6 @@ impl Exec<'_> {
             .get(&axis)
             .copied()
             .unwrap_or(50_000_000)
-    }
-
-    pub(super) async fn all_stopped(&mut self, axes: &[AxisRole]) -> Result<bool, Stop> {
-        for a in axes {
-            if let Some(ax) = self.rig.axes.get_mut(a)
-                && ax.status().await?.moving
-            {
-                return Ok(false);
-            }
-        }
-        Ok(true)
     }
 
     /// An axis still moving past its deadline: stop it, and say where it was.

@@ -141,6 +141,7 @@ impl Axis for ManualAxis {
             position: self.position,
             moving: false,
             referenced: self.referenced,
+            in_position: None,
         })
     }
 

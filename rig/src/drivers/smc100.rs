@@ -223,11 +223,14 @@ impl Axis for Smc100Axis {
     }
 
     async fn home(&mut self) -> Result<(), RigError> {
-        // OR is only allowed from NOT REFERENCED; a referenced stage is already homed.
+        // OR is only allowed from NOT REFERENCED; a referenced stage is already homed and
+        // goes back to its zero, where homing leaves it.
         if (0x0A..=0x11).contains(&self.state().await?) {
-            self.set("OR").await?;
+            self.set("OR").await
+        } else {
+            let max = self.info.max_speed;
+            self.move_to(0.0_f64.max(self.info.travel_min), max).await
         }
-        Ok(())
     }
 
     async fn move_to(&mut self, target: f64, speed: f64) -> Result<(), RigError> {
@@ -255,6 +258,7 @@ impl Axis for Smc100Axis {
             position,
             moving: matches!(st, 0x1E | 0x1F | 0x28),
             referenced: !(0x0A..=0x11).contains(&st),
+            in_position: None,
         })
     }
 

@@ -243,6 +243,7 @@ impl Axis for ZaberAxis {
             position: steps * self.settings.microstep,
             moving: r.busy,
             referenced: r.warning.as_deref() != Some("WR"),
+            in_position: None,
         })
     }
 

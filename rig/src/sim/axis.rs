@@ -119,6 +119,7 @@ impl Axis for SimAxis {
             position,
             moving,
             referenced,
+            in_position: None,
         })
     }
 

@@ -4,6 +4,7 @@
 
 pub mod ati_can;
 pub mod modbus;
+pub mod motion;
 pub mod netft;
 pub mod pty;
 pub mod smc100;

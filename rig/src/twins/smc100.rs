@@ -9,6 +9,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use super::motion::{Motion, Timing};
 pub use super::pty::Faults;
 use super::pty::PtyTwin;
 use crate::lock;
@@ -27,26 +28,12 @@ pub struct TwinParams {
 }
 
 struct State {
-    from: f64,
-    to: f64,
-    start: Instant,
-    speed: f64,
+    motion: Motion,
+    timing: Timing,
     referenced: bool,
     homing: bool,
     error: char,
     velocity: f64,
-}
-
-impl State {
-    fn at(&self, now: Instant) -> (f64, bool) {
-        let d = self.to - self.from;
-        let travelled = self.speed * now.saturating_duration_since(self.start).as_secs_f64();
-        if travelled >= d.abs() {
-            (self.to, false)
-        } else {
-            (self.from + d.signum() * travelled, true)
-        }
-    }
 }
 
 /// A running controller twin.
@@ -59,10 +46,8 @@ impl Smc100Twin {
     /// Starts a controller on a new pseudo-terminal, at an unknown position, NOT REFERENCED.
     pub fn spawn(params: TwinParams) -> std::io::Result<Self> {
         let state = Arc::new(Mutex::new(State {
-            from: 3.3,
-            to: 3.3,
-            start: Instant::now(),
-            speed: 1.0,
+            motion: Motion::at_rest(3.3),
+            timing: Timing::default(),
             referenced: false,
             homing: false,
             error: '@',
@@ -86,6 +71,11 @@ impl Smc100Twin {
         self.pty.faults()
     }
 
+    /// How moves from now on behave: latency to MOVING, overshoot (mm).
+    pub fn set_timing(&self, timing: Timing) {
+        lock(&self.state).timing = timing;
+    }
+
     /// Where the stage is now, mm.
     pub fn position_mm(&self) -> f64 {
         (self.position_probe())()
@@ -94,7 +84,7 @@ impl Smc100Twin {
     /// A handle reading the position in mm, for a plant that follows the stage.
     pub fn position_probe(&self) -> impl Fn() -> f64 + Send + 'static {
         let st = self.state.clone();
-        move || lock(&st).at(Instant::now()).0
+        move || lock(&st).motion.at(Instant::now()).position
     }
 }
 
@@ -110,15 +100,11 @@ fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Optio
     let cut = rest.char_indices().nth(2).map_or(rest.len(), |(i, _)| i);
     let (cmd, value) = rest.split_at(cut);
     let now = Instant::now();
-    let (pos, moving) = st.at(now);
+    let r = st.motion.at(now);
+    let (pos, moving) = (r.position, r.busy);
     if faults.stuck_busy {
         // Frozen where it is, and MOVING: whatever it is told.
-        *st = State {
-            from: pos,
-            to: pos,
-            start: now,
-            ..*st
-        };
+        st.motion = Motion::at_rest(pos);
     }
     let moving = moving || faults.stuck_busy;
     if !moving && st.homing {
@@ -143,13 +129,7 @@ fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Optio
         } else if to < p.limits.0 || to > p.limits.1 {
             st.error = 'C';
         } else {
-            *st = State {
-                from: pos,
-                to,
-                start: now,
-                speed: st.velocity * p.time_scale,
-                ..*st
-            };
+            st.motion = Motion::new(pos, to, st.velocity * p.time_scale, st.timing);
         }
     };
     match (cmd, value) {
@@ -178,14 +158,9 @@ fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Optio
             } else if st.referenced {
                 st.error = 'K';
             } else {
-                *st = State {
-                    from: pos,
-                    to: 0.0,
-                    start: now,
-                    speed: p.home_speed * p.time_scale,
-                    homing: true,
-                    ..*st
-                };
+                // Homing finds its switch: no latency to show, no overshoot.
+                st.motion = Motion::new(pos, 0.0, p.home_speed * p.time_scale, Timing::default());
+                st.homing = true;
             }
             None
         }
@@ -204,13 +179,8 @@ fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Optio
             None
         }
         ("ST", "") => {
-            *st = State {
-                from: pos,
-                to: pos,
-                start: now,
-                homing: false,
-                ..*st
-            };
+            st.motion = Motion::at_rest(pos);
+            st.homing = false;
             None
         }
         _ => {

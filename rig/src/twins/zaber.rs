@@ -11,6 +11,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use super::motion::{Motion, Timing};
 pub use super::pty::Faults;
 use super::pty::PtyTwin;
 
@@ -31,29 +32,9 @@ pub struct TwinParams {
     pub time_scale: f64,
 }
 
-#[derive(Debug, Clone)]
-struct Motion {
-    from: f64,
-    to: f64,
-    start: Instant,
-    speed: f64,
-}
-
-impl Motion {
-    fn at(&self, now: Instant) -> (f64, bool) {
-        let dt = now.saturating_duration_since(self.start).as_secs_f64();
-        let d = self.to - self.from;
-        let travelled = self.speed * dt;
-        if travelled >= d.abs() {
-            (self.to, false)
-        } else {
-            (self.from + d.signum() * travelled, true)
-        }
-    }
-}
-
 struct State {
     motion: Motion,
+    timing: Timing,
     homed: bool,
     interrupted: bool,
 }
@@ -68,12 +49,8 @@ impl ZaberTwin {
     /// Starts a twin on a new pseudo-terminal.
     pub fn spawn(params: TwinParams) -> std::io::Result<Self> {
         let state = Arc::new(Mutex::new(State {
-            motion: Motion {
-                from: 0.0,
-                to: 0.0,
-                start: Instant::now(),
-                speed: 1.0,
-            },
+            motion: Motion::at_rest(0.0),
+            timing: Timing::default(),
             homed: false,
             interrupted: false,
         }));
@@ -98,12 +75,17 @@ impl ZaberTwin {
     /// A handle reading the position in microsteps, for a plant that follows the stage.
     pub fn position_probe(&self) -> impl Fn() -> f64 + Send + 'static {
         let st = self.state.clone();
-        move || lock(&st).motion.at(Instant::now()).0
+        move || lock(&st).motion.at(Instant::now()).position
     }
 
     /// The fault switches.
     pub fn faults(&self) -> &Arc<Mutex<Faults>> {
         self.pty.faults()
+    }
+
+    /// How moves from now on behave: latency to BUSY, overshoot (microsteps).
+    pub fn set_timing(&self, timing: Timing) {
+        lock(&self.state).timing = timing;
     }
 
     /// A handle that reads the transcript from another thread.
@@ -120,15 +102,11 @@ impl ZaberTwin {
 /// The reply to one command line, or `None` for a message to another device.
 fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Option<String> {
     let now = Instant::now();
-    let (pos, busy) = st.motion.at(now);
+    let r = st.motion.at(now);
+    let (pos, busy) = (r.position, r.busy);
     if faults.stuck_busy {
         // Frozen where it is, and busy: whatever it is told.
-        st.motion = Motion {
-            from: pos,
-            to: pos,
-            start: now,
-            speed: 1.0,
-        };
+        st.motion = Motion::at_rest(pos);
     }
     let busy = busy || faults.stuck_busy;
     let reply = |axis: u8, id: Option<u8>, ok: bool, busy: bool, warn: &str, data: &str| {
@@ -175,23 +153,18 @@ fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Optio
         ["get", "version"] => ok("7.38", busy, warn),
         ["home"] => {
             st.interrupted = busy;
-            st.motion = Motion {
-                from: pos,
-                to: 0.0,
-                start: now,
-                speed: 200_000.0 * p.time_scale,
+            // Homing finds its sensor: it lands on 0 whatever the overshoot of moves.
+            let timing = Timing {
+                overshoot: 0.0,
+                ..st.timing
             };
+            st.motion = Motion::new(pos, 0.0, 200_000.0 * p.time_scale, timing);
             st.homed = true;
-            ok("0", true, "--")
+            ok("0", st.motion.at(now).busy, "--")
         }
         ["stop"] => {
             st.interrupted = busy;
-            st.motion = Motion {
-                from: pos,
-                to: pos,
-                start: now,
-                speed: 1.0,
-            };
+            st.motion = Motion::at_rest(pos);
             ok("0", false, if busy { "NI" } else { warn })
         }
         ["move", "abs", target, rest @ ..] => {
@@ -213,13 +186,8 @@ fn respond(line: &str, p: &TwinParams, st: &mut State, faults: &Faults) -> Optio
                 return rj("BADDATA");
             }
             st.interrupted = busy;
-            st.motion = Motion {
-                from: pos,
-                to: t as f64,
-                start: now,
-                speed,
-            };
-            ok("0", true, if busy { "NI" } else { "--" })
+            st.motion = Motion::new(pos, t as f64, speed, st.timing);
+            ok("0", st.motion.at(now).busy, if busy { "NI" } else { "--" })
         }
         _ => rj("BADCOMMAND"),
     }

@@ -29,7 +29,7 @@ impl Cmd {
             .build()
             .context("starting the runtime")?;
         let results = rt.block_on(probe(&rig));
-        let mut failed = Vec::new();
+        let (mut silent, mut refused) = (Vec::new(), Vec::new());
         for p in &results {
             out!(
                 "{:<9} {} {}",
@@ -37,16 +37,25 @@ impl Cmd {
                 if p.ok { "ok  " } else { "FAIL" },
                 p.detail
             );
-            if !p.ok {
-                failed.push(p.role.clone());
+            match (p.ok, p.silent) {
+                (true, _) => {}
+                (false, true) => silent.push(p.role.clone()),
+                (false, false) => refused.push(p.role.clone()),
             }
         }
-        if failed.is_empty() {
+        if silent.is_empty() && refused.is_empty() {
             out!("every device answered");
-            Ok(ExitCode::SUCCESS)
-        } else {
-            err!("error: no answer from: {}", failed.join(", "));
-            Ok(ExitCode::from(1))
+            return Ok(ExitCode::SUCCESS);
         }
+        if !silent.is_empty() {
+            err!("error: no answer from: {}", silent.join(", "));
+        }
+        if !refused.is_empty() {
+            err!(
+                "error: answered but not ready: {} (what each said is above)",
+                refused.join(", ")
+            );
+        }
+        Ok(ExitCode::from(1))
     }
 }

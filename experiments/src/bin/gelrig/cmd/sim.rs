@@ -37,6 +37,14 @@ enum Action {
         /// Where to write the bound rig file [default: RIG.bound.yaml beside it].
         #[arg(long, value_name = "FILE")]
         write: Option<PathBuf>,
+        /// The stage twins show motion this many milliseconds (of plant time) after a
+        /// command, as real drives do (try 20–200 to check a rig file's completion
+        /// settings).
+        #[arg(long, default_value_t = 0.0, value_name = "MS")]
+        drive_latency_ms: f64,
+        /// The stage twins come to rest this many device steps past their target.
+        #[arg(long, default_value_t = 0.0, value_name = "N")]
+        overshoot_steps: f64,
     },
 }
 
@@ -48,7 +56,15 @@ impl Cmd {
             time_scale,
             seed,
             write,
+            drive_latency_ms,
+            overshoot_steps,
         } = self.action;
+        if !(0.0..=10_000.0).contains(&drive_latency_ms)
+            || !(0.0..=1000.0).contains(&overshoot_steps)
+        {
+            err!("error: --drive-latency-ms must be 0–10000 and --overshoot-steps 0–1000");
+            return Ok(ExitCode::from(super::EXIT_INVALID));
+        }
         let (rig, plant) = match &protocol {
             Some(p) => {
                 let loaded =
@@ -83,6 +99,8 @@ impl Cmd {
                 time_scale,
                 plant,
                 seed,
+                drive_latency: std::time::Duration::from_secs_f64(drive_latency_ms * 1e-3),
+                overshoot_steps,
             };
             let served = serve(&rig, options)
                 .await

@@ -368,3 +368,46 @@ async fn the_az_block_moves_a_lone_trigger_does_not_and_busy_is_asked_again() {
         "{text}"
     );
 }
+
+/// A long-form map is checked at load: `position` exactly once, a value for every
+/// placeholder used, both forms at once refused — each located at the map's `move`.
+#[test]
+fn a_long_form_map_is_checked_at_load() {
+    let text = r#"
+name: az-bench
+axes:
+  rotation:
+    driver: modbus
+    travel: [-180 deg, 180 deg]
+    max_speed: 10 deg/s
+    resolution: 0.01 deg
+    modbus:
+      address: 192.168.1.20:502
+      slave: 1
+      steps_per_unit: 100
+      move:
+        - write: 0x0058
+          values: [0, 1, speed, speed, acceleration, deceleration, current, 1]
+      acceleration: 1000
+      trigger: {addr: 0x0066, value: 1}
+      position: 0x0120
+      status: 0x007F
+      busy_bit: 8
+      alarm_bit: 7
+      home: {addr: 0x007D, value: 0x0010}
+      stop: {addr: 0x007D, value: 0x0020}
+"#;
+    let rig = rig::config::RigConfig::from_yaml_str(text).expect("parses");
+    let text: Vec<String> = rig
+        .check()
+        .iter()
+        .map(|i| format!("{}: {}", i.path, i.message))
+        .collect();
+    for want in [
+        "axes.rotation.modbus.move: register map: `position` must appear exactly once",
+        "the move uses `deceleration`, but the map gives no `deceleration:` value",
+        "not both",
+    ] {
+        assert!(text.iter().any(|t| t.contains(want)), "{want}: {text:?}");
+    }
+}

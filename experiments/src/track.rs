@@ -199,6 +199,8 @@ struct MarkerRow {
     dx_px: f64,
     dy_px: f64,
     state: &'static str,
+    /// Confidence in the identity, 0–1 (0 when not measured).
+    confidence: f64,
 }
 
 /// One row of `decomposition.csv` (NaN where a representative does not exist).
@@ -551,6 +553,7 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
                     dx_px: r4(d[0]),
                     dy_px: r4(d[1]),
                     state: state.as_str(),
+                    confidence: r4(t.confidences()[id]),
                 })
                 .map_err(|e| write_err(out)(e.to_string()))?;
         }

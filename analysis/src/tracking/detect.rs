@@ -132,6 +132,8 @@ pub struct Detector {
     accs: Vec<Acc>,
     blobs: Vec<Blob>,
     low: u8,
+    /// Background darkness per 32-px block of the last frame.
+    block_bg: Vec<f32>,
 }
 
 impl Detector {
@@ -150,6 +152,7 @@ impl Detector {
             accs: Vec::new(),
             blobs: Vec::new(),
             low: 0,
+            block_bg: Vec::new(),
         }
     }
 
@@ -203,6 +206,7 @@ impl Detector {
             let m = (r.max(g).max(b) >> 8).min(255);
             *d = (255 - m) as u8;
         }
+        self.normalise_exposure();
         // Horizontal [1 2 1], edges replicated.
         for (src, dst) in self.dark.chunks_exact(w).zip(self.rows.chunks_exact_mut(w)) {
             dst[0] = 3 * src[0] as u16 + src[1] as u16;
@@ -219,6 +223,87 @@ impl Detector {
             let out = &mut self.smooth[y * w..][..w];
             for x in 0..w {
                 out[x] = ((up[x] + 2 * mid[x] + down[x] + 8) >> 4) as u8;
+            }
+        }
+    }
+
+    /// Divides out a change of exposure or illumination since the reference.
+    ///
+    /// Darkness is measured against the reference's background, so a frame 40 % darker
+    /// overall would read as 40 % dark everywhere and drown the markers. In blocks of 32 px
+    /// (larger than a marker, smaller than a vignetting gradient), the 10th percentile of the
+    /// darkness on a quarter of the pixels is the background's (even defocused markers
+    /// leave a tenth of any block as background). When the median block's is above 2 %,
+    /// every pixel's brightness ratio is divided by its background's, bilinearly between
+    /// block centres. A frame lit as the reference costs one sampled histogram per block
+    /// and no rescaling.
+    fn normalise_exposure(&mut self) {
+        const BLOCK: usize = 32;
+        let (w, h) = (self.width, self.height);
+        let (bx, by) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
+        self.block_bg.clear();
+        let mut hist = [0u32; 256];
+        for j in 0..by {
+            for i in 0..bx {
+                hist.fill(0);
+                let mut n = 0u32;
+                for y in (j * BLOCK..((j + 1) * BLOCK).min(h)).step_by(2) {
+                    for x in (i * BLOCK..((i + 1) * BLOCK).min(w)).step_by(2) {
+                        hist[self.dark[y * w + x] as usize] += 1;
+                        n += 1;
+                    }
+                }
+                let (mut acc, mut level) = (0u32, 0usize);
+                while level < 255 {
+                    acc += hist[level];
+                    if 10 * acc >= n {
+                        break;
+                    }
+                    level += 1;
+                }
+                // Keep a tenth of the ratio range at least: a block that is all marker or
+                // all shadow is not a background.
+                self.block_bg.push(level.min(230) as f32);
+            }
+        }
+        // Rescale only when the frame as a whole changed (the median block is 2 % darker):
+        // a few blocks full of defocused ink are not an exposure change.
+        let mut levels = self.block_bg.clone();
+        levels.sort_by(f32::total_cmp);
+        if levels.get(levels.len() / 2).is_none_or(|&m| m <= 5.0) {
+            return;
+        }
+        let centre = |k: usize, n: usize, len: usize| {
+            ((k * BLOCK) as f32 + (((k + 1) * BLOCK).min(len) - k * BLOCK) as f32 / 2.0 - 0.5)
+                .min(len as f32 - 1.0)
+                .max(0.0)
+                .min(n as f32 * BLOCK as f32)
+        };
+        let cx: Vec<f32> = (0..bx).map(|i| centre(i, bx, w)).collect();
+        let cy: Vec<f32> = (0..by).map(|j| centre(j, by, h)).collect();
+        let locate = |c: &[f32], v: f32| -> (usize, usize, f32) {
+            if v <= c[0] || c.len() == 1 {
+                return (0, 0, 0.0);
+            }
+            let last = c.len() - 1;
+            if v >= c[last] {
+                return (last, last, 0.0);
+            }
+            let k = c.partition_point(|&q| q <= v) - 1;
+            (k, k + 1, (v - c[k]) / (c[k + 1] - c[k]))
+        };
+        let columns: Vec<(usize, usize, f32)> = (0..w).map(|x| locate(&cx, x as f32)).collect();
+        let mut row_bg = vec![0f32; bx];
+        for y in 0..h {
+            let (j0, j1, ty) = locate(&cy, y as f32);
+            for (i, v) in row_bg.iter_mut().enumerate() {
+                let (a, b) = (self.block_bg[j0 * bx + i], self.block_bg[j1 * bx + i]);
+                *v = a + ty * (b - a);
+            }
+            for (d, &(i0, i1, tx)) in self.dark[y * w..][..w].iter_mut().zip(&columns) {
+                let bg = row_bg[i0] + tx * (row_bg[i1] - row_bg[i0]);
+                let ratio = (255 - *d) as f32 * 255.0 / (255.0 - bg);
+                *d = (255.5 - ratio.min(255.0)) as u8;
             }
         }
     }

@@ -93,9 +93,12 @@ impl Reference {
         // with them give the marker contrast and area, which set the final ones.
         let mut detector = Detector::new(w, h);
         detector.darkness_into(data, &inv_bg);
-        let otsu = otsu_u8(detector.smoothed()).max(20);
+        // Thresholds no lower than four times the background's noise (its robust spread,
+        // 1.4826·MAD), so faint markers (contrast down to 5 %) are found and noise is not.
+        let floor = (4.0 * noise_level(detector.smoothed())).clamp(5.0, 20.0) as u8;
+        let otsu = otsu_u8(detector.smoothed()).max(floor);
         let provisional = Thresholds {
-            low: (otsu / 2).max(10),
+            low: (otsu / 2).max(floor / 2).max(3),
             high: otsu,
             min_area: 4,
             max_area: (w * h / 16) as u32,
@@ -287,6 +290,31 @@ fn median_nearest_distance(markers: &[ReferenceMarker]) -> f64 {
 }
 
 /// Otsu's threshold (Otsu 1979) of a u8 image: maximises the between-class variance.
+/// Robust standard deviation of a darkness image's background: 1.4826 × the median
+/// absolute deviation from the median (markers are a minority of pixels).
+fn noise_level(img: &[u8]) -> f64 {
+    let mut hist = [0u32; 256];
+    for &v in img.iter().step_by(3) {
+        hist[v as usize] += 1;
+    }
+    let n: u32 = hist.iter().sum();
+    let quantile = |h: &[u32], q: u32| {
+        let mut acc = 0;
+        h.iter()
+            .position(|&c| {
+                acc += c;
+                2 * acc >= q
+            })
+            .unwrap_or(0)
+    };
+    let med = quantile(&hist, n);
+    let mut dev = [0u32; 256];
+    for (v, &c) in hist.iter().enumerate() {
+        dev[v.abs_diff(med)] += c;
+    }
+    1.4826 * quantile(&dev, n).max(1) as f64
+}
+
 fn otsu_u8(img: &[u8]) -> u8 {
     let mut hist = [0u64; 256];
     for &v in img {

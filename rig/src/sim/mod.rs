@@ -17,6 +17,7 @@ mod follow;
 mod force;
 pub(crate) mod plant;
 pub mod render;
+pub mod scenes;
 mod twin_plant;
 
 pub(crate) use axis::SimAxis;
@@ -26,4 +27,5 @@ pub(crate) use force::{SimDisturber, SimForceSensor};
 pub use mechanics::response::Quality;
 pub use plant::{MarkerLayout, PlantSpec};
 pub use render::{Renderer, SurfaceView, marker_reference_positions_mm};
+pub use scenes::{Look, Motion, Scene};
 pub use twin_plant::TwinPlant;

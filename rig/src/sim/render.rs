@@ -228,7 +228,7 @@ impl Renderer {
     }
 
     /// View millimetres (centred) to pixels, pixel (i, j) centred at (i, j).
-    fn to_px(&self, x_mm: f64, y_mm: f64) -> [f64; 2] {
+    pub(crate) fn to_px(&self, x_mm: f64, y_mm: f64) -> [f64; 2] {
         [
             self.width as f64 / 2.0 - 0.5 + x_mm / self.mm_per_px,
             self.height as f64 / 2.0 - 0.5 + y_mm / self.mm_per_px,
@@ -275,25 +275,54 @@ impl Renderer {
         turn_rad: f64,
         seq: u64,
     ) -> Vec<u8> {
+        let mut img = self.background_layer(surface);
+        self.draw_markers(&mut img, centres_px, |_| turn_rad);
+        self.finish(&img, seq)
+    }
+
+    /// The lit background with the shading of `surface`, before markers and noise, as
+    /// linear grey levels (RGB, row-major).
+    pub fn background_layer(&self, surface: Option<&SurfaceView>) -> Vec<f32> {
         let mut img: Vec<f32> = self.background.clone();
         if let Some(s) = surface {
             self.shade(&mut img, s);
         }
+        img
+    }
+
+    /// Draws markers at `centres_px` onto a layer; `turn_rad(m)` turns marker `m`'s
+    /// triangle (printed triangles turn with the surface they are printed on). Markers
+    /// beyond the sensor's own layout get orientations from their index.
+    pub fn draw_markers(
+        &self,
+        img: &mut [f32],
+        centres_px: &[[f64; 2]],
+        turn_rad: impl Fn(usize) -> f64,
+    ) {
         for (m, &[x, y]) in centres_px.iter().enumerate() {
             // The drawing code puts pixel centres at +0.5.
             let (cx, cy) = (x + 0.5, y + 0.5);
             match self.layout {
                 MarkerLayout::Grid { diameter_mm, .. } => {
-                    self.dot(&mut img, cx, cy, diameter_mm / 2.0 / self.mm_per_px)
+                    self.dot(img, cx, cy, diameter_mm / 2.0 / self.mm_per_px)
                 }
                 MarkerLayout::Random { size_mm, .. } => {
-                    // The printed triangle turns with the surface it is printed on.
-                    let turn = self.orientations.get(m).copied().unwrap_or(0.0) + turn_rad;
-                    self.triangle(&mut img, cx, cy, size_mm / self.mm_per_px, turn)
+                    let own = self.orientations.get(m).copied().unwrap_or_else(|| {
+                        // SplitMix64 of the index: a fixed, well-spread orientation.
+                        let mut z = (m as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+                        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+                        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+                        z ^= z >> 31;
+                        (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 * std::f64::consts::PI / 3.0
+                    });
+                    self.triangle(img, cx, cy, size_mm / self.mm_per_px, own + turn_rad(m))
                 }
             }
         }
-        // Noise from the texture, at a per-frame offset; then to bytes.
+    }
+
+    /// Sensor noise (unless [`Self::without_noise`]) at a per-frame offset, then bytes.
+    pub fn finish(&self, img: &[f32], seq: u64) -> Vec<u8> {
         let offset = (seq.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 44) as usize;
         let mask = self.noise.len() - 1;
         let gain = if self.noisy { 1.0 } else { 0.0 };
@@ -302,6 +331,21 @@ impl Renderer {
             .enumerate()
             .map(|(i, v)| (v + gain * self.noise[(i + offset) & mask] as f32 + 0.5) as u8)
             .collect()
+    }
+
+    /// Frame size, px.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Ink darkness of a marker's centre against the background at the view's centre,
+    /// `1 − max_c(ink_c / background_c)` (the tracker's darkness measure).
+    pub fn ink_darkness(&self) -> f64 {
+        let i = (((self.height / 2) * self.width + self.width / 2) * 3) as usize;
+        let ratio = (0..3)
+            .map(|c| INK[c] as f64 / self.background[i + c].max(1.0) as f64)
+            .fold(0.0, f64::max);
+        1.0 - ratio
     }
 
     /// Adds the lights' response to the surface slope.

@@ -12,8 +12,7 @@
 //! centroid for the same reason). The high threshold (hysteresis) keeps only components
 //! whose darkest pixel is clearly a marker, so faint shading never starts a blob.
 
-use super::reference::Reference;
-use super::{RgbView, TrackError};
+use super::RgbView;
 
 /// Thresholds in smoothed-darkness levels (1/255 of the background) and area limits.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -156,19 +155,20 @@ impl Detector {
         }
     }
 
-    /// Detects the markers of `frame`, measured against `reference`.
-    pub fn detect(
+    /// Detects the markers of `frame` given the reference's background (`inv_bg`, 65280/B
+    /// per channel) and thresholds; [`super::Reference`] wraps it as `Detector::detect`.
+    pub(crate) fn detect_with(
         &mut self,
         frame: RgbView<'_>,
-        reference: &Reference,
-    ) -> Result<&[Blob], TrackError> {
-        reference.check_size(&frame)?;
+        inv_bg: &[u16],
+        thresholds: &Thresholds,
+    ) -> &[Blob] {
         if self.width != frame.width() || self.height != frame.height() {
             *self = Self::new(frame.width(), frame.height());
         }
-        self.darkness_into(frame.data(), &reference.inv_bg);
-        self.label(&reference.thresholds);
-        Ok(&self.blobs)
+        self.darkness_into(frame.data(), inv_bg);
+        self.label(thresholds);
+        &self.blobs
     }
 
     /// The blobs of the last frame.

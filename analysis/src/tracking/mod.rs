@@ -12,11 +12,12 @@
 //!    must darken in *every* channel, which rejects the contact imprint's coloured shading
 //!    (thesis §3.4) — a 3×3 binomial low-pass, a hysteresis threshold relative to the
 //!    marker contrast, and one pass of run-based connected components that accumulates
-//!    darkness-weighted moments. Blobs touching the image border are flagged.
-//! 3. [`Tracker`]: identities from the reference detections; each frame, predictions from
-//!    each marker's motion smoothed over its neighbours, seeds that are unambiguous,
-//!    propagation from seeds through the neighbour graph, conflicts settled by an optimal
-//!    assignment, merged blobs split, and a per-marker [`MarkerState`].
+//!    darkness-weighted moments. A change of exposure since the reference is divided out
+//!    per block. Blobs touching the image border are flagged.
+//! 3. [`Tracker`]: identities from the reference detections, given only when certain: a
+//!    global motion first (or the frame declared ambiguous), best-first growth through the
+//!    neighbour graph, and a check that the whole field is one field; a per-marker
+//!    [`MarkerState`] and confidence.
 //! 4. [`lk`]: weighted Lucas–Kanade (thesis eq. 3.9–3.11) on darkness pyramids, as a second
 //!    method and as a refinement of the centroids.
 //!

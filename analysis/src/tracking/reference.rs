@@ -65,6 +65,20 @@ impl std::fmt::Debug for Reference {
     }
 }
 
+/// Detection against a reference lives beside the reference, so the detector itself knows
+/// nothing of how a reference is measured (and the two files do not import each other).
+impl Detector {
+    /// Detects the markers of `frame`, measured against `reference`.
+    pub fn detect(
+        &mut self,
+        frame: RgbView<'_>,
+        reference: &Reference,
+    ) -> Result<&[super::Blob], TrackError> {
+        reference.check_size(&frame)?;
+        Ok(self.detect_with(frame, &reference.inv_bg, &reference.thresholds))
+    }
+}
+
 impl Reference {
     /// Measures the reference; refuses a frame that is saturated, holds too few markers or
     /// shows a contact imprint.

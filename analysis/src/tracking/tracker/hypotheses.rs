@@ -119,9 +119,21 @@ impl Tracker {
         // Rank, then add the motions one lattice step (one vote) around the best and rank
         // again: every alias of the winner must face it, however far the gel has moved
         // since the last certain frame.
+        // (Needed only when the winner is not the motion prior itself: around the prior the
+        // first vote already saw them.)
         let (_, best0, _) = rank(&hyps, &differs);
-        let around = hyps[best0].motion.clone();
-        let (votes, _) = self.vote_translations(&around, blobs);
+        let needs_aliases =
+            self.prior_cost(&prior, &prior).is_none() || differs(&hyps[best0].motion, &prior);
+        let around = if needs_aliases {
+            hyps[best0].motion.clone()
+        } else {
+            Vec::new()
+        };
+        let votes = if needs_aliases {
+            self.vote_translations(&around, blobs).0
+        } else {
+            Vec::new()
+        };
         for v in votes {
             if v[0].hypot(v[1]) > DIFFERENT * s {
                 let motion = around.iter().map(|p| [p[0] + v[0], p[1] + v[1]]).collect();
@@ -420,16 +432,11 @@ impl Tracker {
     pub(super) fn explain(&self, motion: &[[f64; 2]], blobs: &[Blob]) -> Explanation {
         let s = self.spacing_px;
         let tol = self.params.seed_radius * s;
-        let mut hit = vec![false; blobs.len()];
         let mut e = Explanation::default();
-        let predicted: Vec<[f64; 2]> = self
-            .pos
-            .iter()
-            .zip(motion)
-            .map(|(p, m)| [p[0] + m[0], p[1] + m[1]])
-            .collect();
-        let mut fit = vec![0.0f64; blobs.len()];
-        for &q in &predicted {
+        // Per blob, how well the nearest prediction lands on it; −1: none does.
+        let mut fit = vec![-1.0f64; blobs.len()];
+        for (p, m) in self.pos.iter().zip(motion) {
+            let q = [p[0] + m[0], p[1] + m[1]];
             if !self.inside(q, self.radius_px) {
                 continue;
             }
@@ -445,15 +452,20 @@ impl Tracker {
                 e.missing += 1;
             } else {
                 e.matched += 1;
-                hit[at as usize] = true;
                 fit[at as usize] = fit[at as usize].max(1.0 - nearest / tol);
             }
         }
-        e.fit = fit.iter().sum();
+        e.fit = fit.iter().filter(|&&f| f > 0.0).sum();
         let unhit: Vec<usize> = (0..blobs.len())
-            .filter(|&b| !hit[b] && !blobs[b].border)
+            .filter(|&b| fit[b] < 0.0 && !blobs[b].border)
             .collect();
         if !unhit.is_empty() {
+            let predicted: Vec<[f64; 2]> = self
+                .pos
+                .iter()
+                .zip(motion)
+                .map(|(p, m)| [p[0] + m[0], p[1] + m[1]])
+                .collect();
             let mut grid = Buckets::default();
             grid.build_points(predicted.iter().copied(), self.width, self.height, 0.5 * s);
             let depth = ENTRY_DEPTH * s;

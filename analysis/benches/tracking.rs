@@ -14,7 +14,10 @@ use std::path::Path;
 
 use analysis::field::{DenseGrid, Interpolator, MarkerField, picture};
 use analysis::tracking::lk::{LkParams, LkTracker, Pyramid};
-use analysis::tracking::{Detector, Method, Pipeline, Reference, RgbView, TrackParams, Tracker};
+use analysis::tracking::{
+    ContactFinder, ContactParams, Detector, Method, Pipeline, Reference, RgbView, TrackParams,
+    Tracker,
+};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rig::sim::{MarkerLayout, Renderer};
 
@@ -130,6 +133,44 @@ fn bench(c: &mut Criterion) {
                     count += detector.detect(*v, &reference).expect("same size").len();
                 }
                 black_box(count)
+            })
+        });
+        // The live path a runner calls per frame: pixels in; markers (detection, identity),
+        // the marker field and the contact region out.
+        g.bench_function("live: markers + field + contact per sequence", |b| {
+            b.iter(|| {
+                let mut p = Pipeline::new(views[0], &params, Method::Centroid).expect("reference");
+                p.enable_contact(views[0], ContactParams::default())
+                    .expect("reference");
+                let mut area = 0.0;
+                for v in &views[1..] {
+                    p.track(*v).expect("same size");
+                    let field = MarkerField::interior_from_tracker(p.tracker());
+                    area += p.contact().map_or(0.0, |c| c.area_px2) + field.len() as f64;
+                }
+                black_box(area)
+            })
+        });
+        g.bench_function("contact only per sequence", |b| {
+            let mut detector = Detector::new(s.w, s.h);
+            let darkness: Vec<Vec<u8>> = views[1..]
+                .iter()
+                .map(|v| {
+                    detector.detect(*v, &reference).expect("same size");
+                    detector.smoothed().to_vec()
+                })
+                .collect();
+            b.iter(|| {
+                let mut finder = ContactFinder::new(views[0], &reference, ContactParams::default())
+                    .expect("reference");
+                let mut area = 0.0;
+                for (v, d) in views[1..].iter().zip(&darkness) {
+                    area += finder
+                        .find(*v, &reference, d)
+                        .expect("same size")
+                        .map_or(0.0, |c| c.area_px2);
+                }
+                black_box(area)
             })
         });
         for method in [Method::CentroidLk, Method::Lk] {

@@ -290,9 +290,26 @@ fn the_real_mini_sequence_tracks_end_to_end() {
     let mut args: Vec<&std::ffi::OsStr> = vec!["--reference".as_ref(), frames[0].as_os_str()];
     args.extend(frames[1..].iter().map(|p| p.as_os_str()));
     args.extend(["--out".as_ref(), out.as_os_str()]);
+    // The Mini's automatic exposure drifts on the untouched gel: the documented threshold.
+    args.extend([
+        std::ffi::OsStr::new("--contact-min-change"),
+        std::ffi::OsStr::new("0.2"),
+    ]);
     let o = track(&args);
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stdout}\n{stderr}");
+    // Contact: none while the gel is untouched (frames 1–56), a region in most frames of
+    // the press (90–140), wider than a few markers.
+    let contact = csv_rows(&tmp.path().join("contact.csv"));
+    assert_eq!(contact.len(), 219);
+    let area = |k: usize| contact[k]["area_px2"].parse::<f64>().unwrap();
+    let still: Vec<usize> = (1..=56).filter(|&k| area(k) > 0.0).collect();
+    assert!(still.is_empty(), "contact on untouched frames {still:?}");
+    let pressed = (90..=140).filter(|&k| area(k) > 4000.0).count();
+    assert!(
+        pressed >= 40,
+        "{pressed} of 51 pressed frames show a contact over 4000 px²"
+    );
     let rows = csv_rows(&out);
     let markers = rows.iter().filter(|r| r["frame"] == "0").count();
     assert!(markers >= 75, "{markers} markers");
@@ -314,6 +331,87 @@ fn the_real_mini_sequence_tracks_end_to_end() {
         .parse()
         .unwrap();
     assert!((90..=140).contains(&frame), "{line}");
+}
+
+/// The sphere's contact radius seen in the image against the simulator's, step by step
+/// (thesis §5.1 measured contact diameters on the camera's frames).
+#[test]
+fn the_contact_region_of_a_sphere_matches_the_simulators_contact_radius() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = copy_run("box-normal-sphere", tmp.path());
+    let field = tmp.path().join("field");
+    let o = track(&[run.as_os_str(), "--field".as_ref(), field.as_os_str()]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{out}\n{err}");
+    assert!(out.contains("contact in "), "{out}");
+    let path = run.join("contact.csv");
+    let header = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(
+        header.lines().next().unwrap(),
+        "frame,area_px2,area_mm2,cx_px,cy_px,radius_mm,radius_px"
+    );
+    let contact = csv_rows(&path);
+    let frames = csv_rows(&run.join("frames.csv"));
+    let steps = csv_rows(&run.join("sim_steps.csv"));
+    let step_of = |frame: &str| {
+        frames
+            .iter()
+            .find(|r| r["frame"] == frame)
+            .map(|r| r["step"].clone())
+            .unwrap()
+    };
+    let (mut checked, mut worst) = (0, 0.0f64);
+    for row in &contact {
+        let step = step_of(&row["frame"]);
+        if step == "0" {
+            assert_eq!(
+                row["area_px2"].parse::<f64>().ok(),
+                Some(0.0),
+                "reference: no contact"
+            );
+            assert_eq!(row["cx_px"], "", "and no centroid");
+            continue;
+        }
+        let truth = steps.iter().find(|s| s["step"] == step).unwrap();
+        let depth: f64 = truth["depth_mm"].parse().unwrap();
+        let a: f64 = truth["contact_radius_mm"].parse().unwrap();
+        if depth < 0.3 {
+            continue;
+        }
+        let r: f64 = row["radius_mm"].parse().unwrap();
+        let area: f64 = row["area_mm2"].parse().unwrap();
+        assert!((area - std::f64::consts::PI * r * r).abs() < 1e-3 * area.max(1.0));
+        let rel = r / a - 1.0;
+        assert!(
+            rel.abs() <= 0.05,
+            "step {step}, depth {depth} mm: radius {r} mm against the simulator's {a} mm"
+        );
+        // The sphere presses the centre of the view.
+        let (cx, cy): (f64, f64) = (row["cx_px"].parse().unwrap(), row["cy_px"].parse().unwrap());
+        assert!(
+            (cx - 319.5).abs() < 3.0 && (cy - 239.5).abs() < 3.0,
+            "({cx}, {cy})"
+        );
+        worst = worst.max(rel.abs());
+        checked += 1;
+    }
+    assert!(checked >= 18, "{checked} steps from 0.3 mm on");
+    eprintln!(
+        "contact radius: worst {:.1} % over {checked} steps",
+        100.0 * worst
+    );
+    // The outline is drawn on the field pictures (dashed magenta).
+    let svg = std::fs::read_to_string(field.join("quiver_000015.svg")).unwrap();
+    assert!(
+        svg.to_lowercase().contains("e600c8"),
+        "no outline in the quiver SVG"
+    );
+
+    // Without contact, no contact.csv.
+    std::fs::remove_file(&path).unwrap();
+    let o = track(&[run.as_os_str(), "--no-contact".as_ref()]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert!(!path.exists());
 }
 
 fn write_png(path: &Path, (w, h): (u32, u32), px: impl Fn(u32, u32) -> [u8; 3]) {

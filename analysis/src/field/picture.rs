@@ -102,6 +102,7 @@ fn draw<DB: DrawingBackend>(
     field: &MarkerField,
     q: &Quiver,
     on_white: bool,
+    contact: Option<&[[f64; 2]]>,
 ) -> Result<(), PictureError> {
     if on_white {
         area.fill(&WHITE).map_err(err)?;
@@ -115,6 +116,17 @@ fn draw<DB: DrawingBackend>(
         (RGBColor(255, 255, 255), WHITE)
     };
     let inferred = RGBColor(230, 120, 0);
+    // The contact outline, dashed magenta, under the arrows.
+    if let Some(outline) = contact.filter(|o| o.len() >= 3) {
+        let mut ring: Vec<(i32, i32)> = outline.iter().map(|p| px(*p)).collect();
+        ring.push(ring[0]);
+        let style =
+            ShapeStyle::from(&RGBColor(230, 0, 200)).stroke_width((z.round() as u32).max(1));
+        for pair in ring.windows(2).step_by(2) {
+            area.draw(&PathElement::new(pair.to_vec(), style))
+                .map_err(err)?;
+        }
+    }
     for i in 0..field.len() {
         let r = field.reference_px[i];
         area.draw(&Circle::new(
@@ -163,12 +175,16 @@ fn draw<DB: DrawingBackend>(
 
 /// The quiver plot as SVG: grey dots at the reference markers, arrows to their displaced
 /// positions (blue measured, orange inferred), and a black bar one spacing long (times the
-/// magnification) in the bottom left.
-pub fn quiver_svg(field: &MarkerField, q: &Quiver) -> Result<String, PictureError> {
+/// magnification) in the bottom left; the contact outline (px), if given, dashed magenta.
+pub fn quiver_svg(
+    field: &MarkerField,
+    q: &Quiver,
+    contact: Option<&[[f64; 2]]>,
+) -> Result<String, PictureError> {
     let mut s = String::new();
     {
         let area = SVGBackend::with_string(&mut s, q.size()).into_drawing_area();
-        draw(&area, field, q, true)?;
+        draw(&area, field, q, true, contact)?;
         area.present().map_err(err)?;
     }
     Ok(s)
@@ -176,11 +192,12 @@ pub fn quiver_svg(field: &MarkerField, q: &Quiver) -> Result<String, PictureErro
 
 /// The quiver plot as RGB8 pixels of `q`'s size, over `background` (an RGB8 image of the
 /// same size, e.g. an upscaled [`colour_image`]; arrows and bar then white) or over white
-/// (arrows dark blue, bar black).
+/// (arrows dark blue, bar black); the contact outline (px), if given, dashed magenta.
 pub fn quiver_rgb(
     field: &MarkerField,
     q: &Quiver,
     background: Option<&[u8]>,
+    contact: Option<&[[f64; 2]]>,
 ) -> Result<(u32, u32, Vec<u8>), PictureError> {
     let (w, h) = q.size();
     let n = (w * h * 3) as usize;
@@ -197,7 +214,7 @@ pub fn quiver_rgb(
     };
     {
         let area = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        draw(&area, field, q, on_white)?;
+        draw(&area, field, q, on_white, contact)?;
         area.present().map_err(err)?;
     }
     Ok((w, h, buf))
@@ -236,13 +253,31 @@ mod tests {
             magnify: 1.0,
             spacing_px: 10.0,
         };
-        let (w, h, rgb) = quiver_rgb(&field, &q, None).expect("draws");
+        let (w, h, rgb) = quiver_rgb(&field, &q, None, None).expect("draws");
         assert_eq!((w, h), (160, 80));
         // A pixel on the first arrow's shaft is dark blue; the still marker draws no arrow.
         let at = |x: usize, y: usize| &rgb[(y * w as usize + x) * 3..][..3];
         assert_eq!(at(50, 40), &[20, 30, 120]);
         assert!(rgb.chunks(3).all(|p| p != [230, 120, 0]));
-        let svg = quiver_svg(&field, &q).expect("draws");
+        let svg = quiver_svg(&field, &q, None).expect("draws");
         assert!(svg.starts_with("<svg") && svg.contains("polyline"));
+        assert!(
+            !rgb.chunks(3).any(|p| p == [230, 0, 200]),
+            "no contact, no outline"
+        );
+        let ring: Vec<[f64; 2]> = (0..36)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 36.0;
+                [40.0 + 12.0 * a.cos(), 20.0 + 12.0 * a.sin()]
+            })
+            .collect();
+        let (_, _, rgb) = quiver_rgb(&field, &q, None, Some(&ring)).expect("draws");
+        let magenta = rgb.chunks(3).filter(|p| *p == [230, 0, 200]).count();
+        assert!(magenta > 50, "the outline is drawn ({magenta} px)");
+        let svg = quiver_svg(&field, &q, Some(&ring)).expect("draws");
+        assert!(
+            svg.contains("#E600C8") || svg.to_lowercase().contains("e600c8"),
+            "{svg}"
+        );
     }
 }

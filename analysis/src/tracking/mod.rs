@@ -18,18 +18,22 @@
 //!    global motion first (or the frame declared ambiguous), best-first growth through the
 //!    neighbour graph, and a check that the whole field is one field; a per-marker
 //!    [`MarkerState`] and confidence.
-//! 4. [`lk`]: weighted Lucas–Kanade (thesis eq. 3.9–3.11) on darkness pyramids, as a second
+//! 4. [`ContactFinder`] (when asked for): the contact region from the colour change against
+//!    the reference, markers masked.
+//! 5. [`lk`]: weighted Lucas–Kanade (thesis eq. 3.9–3.11) on darkness pyramids, as a second
 //!    method and as a refinement of the centroids.
 //!
 //! Coordinates are pixels with the centre of pixel (i, j) at (i, j) (the OpenCV
 //! convention), x to the right, y down. Nothing here does I/O: frames come in as RGB8
 //! slices.
 
+mod contact;
 mod detect;
 pub mod lk;
 mod reference;
 mod tracker;
 
+pub use contact::{ContactFinder, ContactParams, ContactRegion};
 pub use detect::{Blob, Detector};
 pub use reference::{Reference, ReferenceMarker};
 pub use tracker::{MarkerState, Tracker};
@@ -245,6 +249,8 @@ pub struct Pipeline {
     method: Method,
     lk: Option<lk::LkTracker>,
     lk_displacement: Vec<[f64; 2]>,
+    contact: Option<ContactFinder>,
+    last_contact: Option<ContactRegion>,
 }
 
 impl Pipeline {
@@ -272,13 +278,38 @@ impl Pipeline {
             reference,
             method,
             lk,
+            contact: None,
+            last_contact: None,
         })
+    }
+
+    /// Also finds the contact region of every frame from now on ([`ContactFinder`]); its
+    /// noise floor is measured on `reference_frame`, the frame this pipeline was made from.
+    pub fn enable_contact(
+        &mut self,
+        reference_frame: RgbView<'_>,
+        params: ContactParams,
+    ) -> Result<(), TrackError> {
+        self.contact = Some(ContactFinder::new(
+            reference_frame,
+            &self.reference,
+            params,
+        )?);
+        Ok(())
+    }
+
+    /// The contact region of the last frame (`None` without contact, or when not enabled).
+    pub fn contact(&self) -> Option<&ContactRegion> {
+        self.last_contact.as_ref()
     }
 
     /// Tracks one frame.
     pub fn track(&mut self, frame: RgbView<'_>) -> Result<(), TrackError> {
         let blobs = self.detector.detect(frame, &self.reference)?;
         self.tracker.update(blobs);
+        if let Some(finder) = &mut self.contact {
+            self.last_contact = finder.find(frame, &self.reference, self.detector.smoothed())?;
+        }
         let Some(lk) = &self.lk else {
             return Ok(());
         };

@@ -707,7 +707,7 @@ fn field_pictures(data: &RunData, b: &Block, out: &Out) -> Result<Vec<String>, R
         spacing_px: super::analyse::spacing_px(&field),
     };
     let name = format!("field_step{}", s.step);
-    let svg_text = analysis::field::picture::quiver_svg(&field, &q)
+    let svg_text = analysis::field::picture::quiver_svg(&field, &q, None)
         .map_err(|e| werr(&out.dir)(e.to_string()))?;
     let p = out.dir.join(format!("{name}.svg"));
     fs::write(&p, svg_text).map_err(|e| werr(&p)(e.to_string()))?;

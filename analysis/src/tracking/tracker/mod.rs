@@ -79,6 +79,17 @@ pub enum MarkerState {
 }
 
 impl MarkerState {
+    /// Every state, in the order summaries list them.
+    pub const ALL: [Self; 7] = [
+        Self::Tracked,
+        Self::Border,
+        Self::Merged,
+        Self::Predicted,
+        Self::OutOfView,
+        Self::Ambiguous,
+        Self::Lost,
+    ];
+
     /// The name written to `markers.csv`.
     pub fn as_str(self) -> &'static str {
         match self {

@@ -29,6 +29,20 @@ pub(crate) struct Cmd {
     /// Arrow length per pixel of displacement in quiver plots.
     #[arg(long, default_value_t = 3.0)]
     magnify: f64,
+    /// Do not find the contact region (no contact.csv).
+    #[arg(long)]
+    no_contact: bool,
+    /// Image scale for contact.csv's mm columns [default: a run directory's own scale].
+    #[arg(long, value_name = "MM")]
+    mm_per_px: Option<f64>,
+    /// Smallest colour change (relative intensity) that can be contact. The default suits
+    /// a camera with fixed exposure; a GelSight Mini's automatic exposure drifts by up to
+    /// 0.16 on an untouched gel, so pass 0.2 for it.
+    #[arg(long, value_name = "CHANGE", default_value_t = 0.015)]
+    contact_min_change: f64,
+    /// Threads decoding frames ahead of the tracker [default: one per core].
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    decoders: usize,
 }
 
 impl Cmd {
@@ -65,7 +79,30 @@ impl Cmd {
             method: self.method,
             field_dir: self.field.clone(),
             magnify: self.magnify,
+            contact: !self.no_contact,
+            mm_per_px: self.mm_per_px,
+            decoders: self.decoders,
+            contact_params: analysis::tracking::ContactParams {
+                min_change: self.contact_min_change,
+                ..Default::default()
+            },
         };
+        if !(self.contact_min_change.is_finite() && self.contact_min_change >= 0.0) {
+            err!(
+                "error: --contact-min-change {} is not a change; fix: pass a number ≥ 0 (0.015 \
+                 for a fixed-exposure camera, 0.2 for a GelSight Mini)",
+                self.contact_min_change
+            );
+            return Ok(ExitCode::from(super::EXIT_INVALID));
+        }
+        if let Some(s) = self.mm_per_px
+            && !(s.is_finite() && s > 0.0)
+        {
+            err!(
+                "error: --mm-per-px {s} is not a scale; fix: pass a positive number of mm per pixel"
+            );
+            return Ok(ExitCode::from(super::EXIT_INVALID));
+        }
         let summary = match track(&input, &out, &opts) {
             Ok(s) => s,
             Err(e @ TrackFailure::Write { .. }) => return Err(e.into()),
@@ -110,6 +147,25 @@ impl Cmd {
                  ({n} tracked positions)"
             );
         }
+        if let Some(path) = &summary.contact_csv {
+            match summary.largest_contact {
+                Some((frame, r_px)) => out!(
+                    "contact in {} frames; largest at frame {frame}: equivalent radius {r_px:.1} px{}",
+                    summary.contact_frames,
+                    summary
+                        .mm_per_px
+                        .map(|s| format!(" = {:.3} mm", r_px * s))
+                        .unwrap_or_default()
+                ),
+                None => out!("no contact region in any frame"),
+            }
+            out!("wrote {}", path.display());
+        }
+        out!(
+            "wall time {:.2} s ({:.2} ms per frame, decoding and writing included)",
+            summary.wall_s,
+            1e3 * summary.wall_s / summary.frames.max(1) as f64
+        );
         out!("wrote {}", summary.markers_csv.display());
         if let Some(dir) = &self.field {
             out!(

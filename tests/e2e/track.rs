@@ -414,6 +414,127 @@ fn the_contact_region_of_a_sphere_matches_the_simulators_contact_radius() {
     assert!(!path.exists());
 }
 
+/// A recording that starts at 1.1 mm of the sphere's indentation, with no untouched frame:
+/// the lattice from the periphery, displacements against the simulator's.
+#[test]
+fn a_reference_free_start_measures_the_sphere_from_its_periphery() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = copy_run("box-normal-sphere", tmp.path());
+    let frames: Vec<PathBuf> = (10..=20)
+        .map(|k| run.join(format!("frames/{k:06}.png")))
+        .collect();
+    let out = tmp.path().join("markers.csv");
+    let mut args: Vec<&std::ffi::OsStr> = vec!["--reference-free".as_ref()];
+    args.extend(frames.iter().map(|p| p.as_os_str()));
+    args.extend(["--out".as_ref(), out.as_os_str()]);
+    let o = track(&args);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("reference-free start: lattice"), "{stdout}");
+    assert!(
+        !tmp.path().join("contact.csv").exists(),
+        "no contact without the untouched gel"
+    );
+    // Truth: the simulator's centres, frame 0 of the run being the untouched gel.
+    let sim = csv_rows(&run.join("sim_markers.csv"));
+    let at = |frame: usize| -> Vec<[f64; 2]> {
+        sim.iter()
+            .filter(|r| r["frame"] == frame.to_string())
+            .map(|r| [r["x_px"].parse().unwrap(), r["y_px"].parse().unwrap()])
+            .collect()
+    };
+    let rest = at(0);
+    let rows = csv_rows(&out);
+    let (mut sq, mut n, mut worst_site) = (0.0, 0usize, 0.0f64);
+    for k in 0..=10usize {
+        let truth = at(10 + k);
+        for r in rows.iter().filter(|r| r["frame"] == k.to_string()) {
+            if r["state"] != "tracked" {
+                continue;
+            }
+            let v = |c: &str| r[c].parse::<f64>().unwrap();
+            let site = [v("x_px") - v("dx_px"), v("y_px") - v("dy_px")];
+            let (m, d) = rest
+                .iter()
+                .enumerate()
+                .map(|(m, p)| (m, (p[0] - site[0]).hypot(p[1] - site[1])))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap();
+            worst_site = worst_site.max(d);
+            let moved = [truth[m][0] - rest[m][0], truth[m][1] - rest[m][1]];
+            sq += (v("dx_px") - moved[0]).powi(2) + (v("dy_px") - moved[1]).powi(2);
+            n += 1;
+        }
+    }
+    let rms = (sq / n as f64).sqrt();
+    assert!(n >= 11 * 280, "{n} tracked rows");
+    assert!(
+        worst_site < 0.15,
+        "a site is {worst_site} px from its printed marker"
+    );
+    assert!(rms < 0.1, "displacement rms {rms} px against the simulator");
+    eprintln!(
+        "reference-free start on the sphere: sites within {worst_site:.3} px, rms {rms:.3} px"
+    );
+}
+
+#[test]
+fn detect_only_finds_every_marker_of_a_single_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = copy_run("box-normal-sphere", tmp.path());
+    let frame = run.join("frames/000015.png");
+    let out = tmp.path().join("d.csv");
+    let o = track(&[
+        "--detect-only".as_ref(),
+        frame.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    let header = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(
+        header.lines().next().unwrap(),
+        "frame,id,x_px,y_px,area_px,border"
+    );
+    let rows = csv_rows(&out);
+    let sim = csv_rows(&run.join("sim_markers.csv"));
+    let truth: Vec<[f64; 2]> = sim
+        .iter()
+        .filter(|r| r["frame"] == "15")
+        .map(|r| [r["x_px"].parse().unwrap(), r["y_px"].parse().unwrap()])
+        .collect();
+    assert_eq!(rows.len(), truth.len(), "every marker, nothing else");
+    for r in &rows {
+        let p = [
+            r["x_px"].parse::<f64>().unwrap(),
+            r["y_px"].parse::<f64>().unwrap(),
+        ];
+        let d = truth
+            .iter()
+            .map(|t| (t[0] - p[0]).hypot(t[1] - p[1]))
+            .fold(f64::INFINITY, f64::min);
+        assert!(d < 0.1, "detection {p:?} is {d} px from the nearest marker");
+    }
+    // A run directory is not a frame; random triangles are no lattice.
+    let o = track(&["--detect-only".as_ref(), run.as_os_str()]);
+    assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
+    assert!(text(&o).1.contains("fix:"), "{:?}", text(&o));
+    let portable = copy_run("portable-rotation", tmp.path());
+    let o = track(&[
+        "--reference-free".as_ref(),
+        portable.join("frames/000001.png").as_os_str(),
+        "--out".as_ref(),
+        tmp.path().join("p.csv").as_os_str(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
+    assert!(
+        text(&o).1.contains("fix: pass --reference"),
+        "{:?}",
+        text(&o)
+    );
+}
+
 fn write_png(path: &Path, (w, h): (u32, u32), px: impl Fn(u32, u32) -> [u8; 3]) {
     image::RgbImage::from_fn(w, h, |x, y| image::Rgb(px(x, y)))
         .save(path)

@@ -29,6 +29,7 @@
 
 mod contact;
 mod detect;
+pub mod lattice;
 pub mod lk;
 mod reference;
 mod tracker;
@@ -184,6 +185,29 @@ pub enum TrackError {
         /// Markers found.
         found: usize,
     },
+    /// A reference-free start found no regular lattice of markers.
+    #[error(
+        "the markers do not form a regular lattice ({inliers} of {detections} fit one, rms \
+         {rms_fraction:.3} of a spacing); a reference-free start needs grid markers; fix: pass \
+         --reference with a frame of the untouched gel"
+    )]
+    NotALattice {
+        /// Markers the best lattice explains.
+        inliers: usize,
+        /// Markers detected.
+        detections: usize,
+        /// Their rms distance from their sites, in spacings.
+        rms_fraction: f64,
+    },
+    /// A reference-free start with a method that needs the untouched gel's image.
+    #[error(
+        "a reference-free start has no image of the untouched gel, which the {method} method \
+         takes its templates from; fix: use --method centroid, or pass --reference"
+    )]
+    ReferenceFreeMethod {
+        /// The method asked for.
+        method: &'static str,
+    },
     /// The reference frame shows a contact imprint.
     #[error(
         "the reference frame shows a contact imprint (chromatic residual {score:.3} > \
@@ -219,6 +243,17 @@ pub enum Method {
     Lk,
     /// Centroids refined by one level of weighted Lucas–Kanade.
     CentroidLk,
+}
+
+impl Method {
+    /// The name on the command line.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Centroid => "centroid",
+            Self::Lk => "lk",
+            Self::CentroidLk => "centroid+lk",
+        }
+    }
 }
 
 impl std::str::FromStr for Method {
@@ -281,6 +316,60 @@ impl Pipeline {
             contact: None,
             last_contact: None,
         })
+    }
+
+    /// A pipeline for a recording that starts mid-contact, with no image of the untouched
+    /// gel: the undeformed lattice is fitted to the periphery of `first_frame`
+    /// ([`lattice::fit`]), its sites become the reference markers, and `first_frame` is
+    /// tracked against them (its displacements are relative to the lattice). Grid markers
+    /// and the centroid method only; no contact region (it needs the untouched gel).
+    pub fn reference_free(
+        first_frame: RgbView<'_>,
+        params: &TrackParams,
+        method: Method,
+    ) -> Result<(Self, lattice::Lattice), TrackError> {
+        if method != Method::Centroid {
+            return Err(TrackError::ReferenceFreeMethod {
+                method: method.as_str(),
+            });
+        }
+        let seen = Reference::of_any_frame(first_frame, params)?;
+        let points: Vec<[f64; 2]> = seen
+            .markers()
+            .iter()
+            .filter(|m| !m.border)
+            .map(|m| [m.x, m.y])
+            .collect();
+        let fit = lattice::fit(&points, seen.spacing_px())?;
+        let (w, h) = (seen.width(), seen.height());
+        let (r, area) = (seen.radius_px(), seen.area_px());
+        let sites: Vec<ReferenceMarker> = fit
+            .sites_in(w, h)
+            .into_iter()
+            .map(|p| ReferenceMarker {
+                x: p[0],
+                y: p[1],
+                area_px: area.round() as u32,
+                border: p[0] < r + 1.0
+                    || p[1] < r + 1.0
+                    || p[0] > w as f64 - 2.0 - r
+                    || p[1] > h as f64 - 2.0 - r,
+            })
+            .collect();
+        let reference = seen.with_markers(sites, fit.spacing_px());
+        let tracker = Tracker::new(&reference);
+        let mut pipeline = Self {
+            detector: Detector::new(w, h),
+            lk_displacement: vec![[0.0; 2]; tracker.len()],
+            tracker,
+            reference,
+            method,
+            lk: None,
+            contact: None,
+            last_contact: None,
+        };
+        pipeline.track(first_frame)?;
+        Ok((pipeline, fit))
     }
 
     /// Also finds the contact region of every frame from now on ([`ContactFinder`]); its

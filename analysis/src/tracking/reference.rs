@@ -83,6 +83,34 @@ impl Reference {
     /// Measures the reference; refuses a frame that is saturated, holds too few markers or
     /// shows a contact imprint.
     pub fn new(frame: RgbView<'_>, params: &TrackParams) -> Result<Self, TrackError> {
+        Self::measure(frame, params, true)
+    }
+
+    /// Measures a frame that may show contact: its own background, thresholds and markers
+    /// (the detections of a single frame, for `--detect-only` and the reference-free start).
+    /// Displacements measured against it are not from the untouched gel.
+    pub fn of_any_frame(frame: RgbView<'_>, params: &TrackParams) -> Result<Self, TrackError> {
+        Self::measure(frame, params, false)
+    }
+
+    /// The same background and thresholds with other markers (the undeformed lattice of a
+    /// reference-free start), in reading order, with the given spacing.
+    pub(crate) fn with_markers(
+        mut self,
+        mut markers: Vec<ReferenceMarker>,
+        spacing_px: f64,
+    ) -> Self {
+        sort_raster(&mut markers, spacing_px);
+        self.markers = markers;
+        self.spacing_px = spacing_px;
+        self
+    }
+
+    fn measure(
+        frame: RgbView<'_>,
+        params: &TrackParams,
+        imprint_check: bool,
+    ) -> Result<Self, TrackError> {
         let (w, h) = (frame.width(), frame.height());
         let data = frame.data();
         let saturated = data
@@ -178,7 +206,7 @@ impl Reference {
                 found: markers.len(),
             });
         }
-        if contact_score > params.contact_imprint_limit {
+        if imprint_check && contact_score > params.contact_imprint_limit {
             return Err(TrackError::ReferenceInContact {
                 score: contact_score,
                 limit: params.contact_imprint_limit,

@@ -64,6 +64,23 @@ pub(super) type FrameList = (PathBuf, Option<u64>, Vec<(u64, PathBuf)>);
 
 pub(super) fn frame_list(input: &Input) -> Result<FrameList, TrackFailure> {
     match input {
+        Input::ReferenceFree { frames } => {
+            let Some((first, rest)) = frames.split_first() else {
+                return Err(TrackFailure::Read {
+                    path: PathBuf::new(),
+                    detail: "no frames given; fix: pass the frames to track, first frame first"
+                        .into(),
+                });
+            };
+            Ok((
+                first.clone(),
+                Some(0),
+                rest.iter()
+                    .enumerate()
+                    .map(|(k, p)| (k as u64 + 1, p.clone()))
+                    .collect(),
+            ))
+        }
         Input::Files { reference, frames } => Ok((
             reference.clone(),
             Some(0),

@@ -17,8 +17,11 @@ use analysis::tracking::{MarkerState, Method, Pipeline, RgbView, TrackError, Tra
 use serde::Serialize;
 
 mod decode;
+mod detect_only;
 mod field_out;
 mod input;
+
+pub use detect_only::{Detections, detect_only};
 
 use analysis::tracking::{ContactParams, ContactRegion};
 use decode::DecodeAhead;
@@ -29,6 +32,12 @@ use input::{frame_list, run_scale, sim_truth};
 /// What to track.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Input {
+    /// Frames with no image of the untouched gel (a recording that starts mid-contact):
+    /// the undeformed lattice is fitted to the periphery of the first (frame 0).
+    ReferenceFree {
+        /// Frames 0, 1, …
+        frames: Vec<PathBuf>,
+    },
     /// A no-contact reference image and the frames to track, in order.
     Files {
         /// The reference (frame 0).
@@ -110,6 +119,8 @@ pub struct Summary {
     pub mm_per_px: Option<f64>,
     /// Wall time of the whole command (decode, track, write), s.
     pub wall_s: f64,
+    /// The lattice fitted on a reference-free start.
+    pub lattice: Option<analysis::tracking::lattice::Lattice>,
 }
 
 /// Why tracking stopped. `markers.csv` keeps every frame tracked before the failure.
@@ -228,22 +239,32 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         source,
     };
     let view = RgbView::new(w, h, &rgb).map_err(reference_err)?;
-    let mut pipeline =
-        Pipeline::new(view, &TrackParams::default(), opts.method).map_err(reference_err)?;
-    if opts.contact {
+    let reference_free = matches!(input, Input::ReferenceFree { .. });
+    let (mut pipeline, lattice) = if reference_free {
+        let (p, l) = Pipeline::reference_free(view, &TrackParams::default(), opts.method)
+            .map_err(reference_err)?;
+        (p, Some(l))
+    } else {
+        let p = Pipeline::new(view, &TrackParams::default(), opts.method).map_err(reference_err)?;
+        (p, None)
+    };
+    // The contact region is a change against the untouched gel, which a reference-free
+    // start has not seen.
+    let contact = opts.contact && !reference_free;
+    if contact {
         pipeline
             .enable_contact(view, opts.contact_params.clone())
             .map_err(reference_err)?;
     }
     let mm_per_px = opts.mm_per_px.or_else(|| match input {
         Input::RunDir { dir, .. } => run_scale(dir, w, h),
-        Input::Files { .. } => None,
+        Input::Files { .. } | Input::ReferenceFree { .. } => None,
     });
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         fs::create_dir_all(parent).map_err(|e| write_err(parent)(e.to_string()))?;
     }
     let mut csv_out = csv::Writer::from_path(out).map_err(|e| write_err(out)(e.to_string()))?;
-    let contact_path = opts.contact.then(|| out.with_file_name("contact.csv"));
+    let contact_path = contact.then(|| out.with_file_name("contact.csv"));
     let mut contact_out = match &contact_path {
         Some(p) => Some(csv::Writer::from_path(p).map_err(|e| write_err(p)(e.to_string()))?),
         None => None,
@@ -387,5 +408,6 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         largest_contact,
         mm_per_px,
         wall_s: started.elapsed().as_secs_f64(),
+        lattice,
     })
 }

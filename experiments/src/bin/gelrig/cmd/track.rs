@@ -29,6 +29,14 @@ pub(crate) struct Cmd {
     /// Arrow length per pixel of displacement in quiver plots.
     #[arg(long, default_value_t = 3.0)]
     magnify: f64,
+    /// No image of the untouched gel: fit the undeformed marker lattice to the periphery of
+    /// the first frame (grid markers, centroid method) and track from there.
+    #[arg(long, conflicts_with = "reference")]
+    reference_free: bool,
+    /// Only detect the markers of each frame on its own (no reference, no identities);
+    /// writes detections.csv (frame,id,x_px,y_px,area_px,border).
+    #[arg(long, conflicts_with_all = ["reference", "reference_free", "field"])]
+    detect_only: bool,
     /// Do not find the contact region (no contact.csv).
     #[arg(long)]
     no_contact: bool,
@@ -51,7 +59,40 @@ impl Cmd {
             [one] if one.is_dir() => Some(one.clone()),
             _ => None,
         };
-        let (input, default_out) = match (run_dir, self.reference) {
+        if (self.detect_only || self.reference_free) && run_dir.is_some() {
+            err!(
+                "error: --detect-only and --reference-free take image files; fix: pass the PNG \
+                 frames (for a run: RUN_DIR/frames/*.png)"
+            );
+            return Ok(ExitCode::from(super::EXIT_INVALID));
+        }
+        if self.detect_only {
+            let out = self.out.unwrap_or_else(|| PathBuf::from("detections.csv"));
+            return match experiments::track::detect_only(&self.inputs, &out) {
+                Ok(d) => {
+                    out!(
+                        "detected {}–{} markers per frame in {} frames (median spacing {:.1} px)",
+                        d.per_frame.0,
+                        d.per_frame.1,
+                        d.frames,
+                        d.spacing_px
+                    );
+                    out!("wrote {}", d.csv.display());
+                    Ok(ExitCode::SUCCESS)
+                }
+                Err(e @ TrackFailure::Write { .. }) => Err(e.into()),
+                Err(e) => {
+                    err!("error: {e}");
+                    Ok(ExitCode::from(super::EXIT_INVALID))
+                }
+            };
+        }
+        let reference = if self.reference_free {
+            None
+        } else {
+            self.reference
+        };
+        let (input, default_out) = match (run_dir, reference) {
             (Some(dir), reference) => (
                 Input::RunDir {
                     dir: dir.clone(),
@@ -66,10 +107,17 @@ impl Cmd {
                 },
                 PathBuf::from("markers.csv"),
             ),
+            (None, None) if self.reference_free => (
+                Input::ReferenceFree {
+                    frames: self.inputs,
+                },
+                PathBuf::from("markers.csv"),
+            ),
             (None, None) => {
                 err!(
                     "error: no reference frame; fix: pass --reference REF.png (an image of the \
-                     untouched gel) before the frames, or give one run directory"
+                     untouched gel) before the frames, --reference-free for a recording that \
+                     starts in contact (grid markers), or give one run directory"
                 );
                 return Ok(ExitCode::from(super::EXIT_INVALID));
             }
@@ -116,11 +164,7 @@ impl Cmd {
             summary.frames,
             summary.markers,
             summary.spacing_px,
-            match self.method {
-                Method::Centroid => "centroid",
-                Method::Lk => "lk",
-                Method::CentroidLk => "centroid+lk",
-            }
+            self.method.as_str()
         );
         let states: Vec<String> = summary
             .states
@@ -128,6 +172,17 @@ impl Cmd {
             .filter(|(_, n)| *n > 0)
             .map(|(s, n)| format!("{s} {n}"))
             .collect();
+        if let Some(l) = &summary.lattice {
+            out!(
+                "reference-free start: lattice of spacing {:.2} px at {:.2}°, fitted to {} of {} \
+                 markers (rms {:.3} px); frame 0's displacements are from it",
+                l.spacing_px(),
+                l.a_px[1].atan2(l.a_px[0]).to_degrees(),
+                l.inliers,
+                l.detections,
+                l.rms_px
+            );
+        }
         out!("marker states after the reference: {}", states.join(", "));
         out!(
             "median {:.3} ms per frame (detection + identity{})",

@@ -240,9 +240,10 @@ impl Tracker {
             }
             self.buckets.for_each_near(p, reach, |b| {
                 let v = [blobs[b as usize].x - p[0], blobs[b as usize].y - p[1]];
-                if v[0].hypot(v[1]) <= reach {
-                    let bx = ((v[0] / bin).round() + half as f64) as usize;
-                    let by = ((v[1] / bin).round() + half as f64) as usize;
+                if v[0] * v[0] + v[1] * v[1] <= reach * reach {
+                    // Both are ≥ 0 after the offset, so +0.5 and truncation round.
+                    let bx = (v[0] / bin + half as f64 + 0.5) as usize;
+                    let by = (v[1] / bin + half as f64 + 0.5) as usize;
                     hist[by.min(bins - 1) * bins + bx.min(bins - 1)] += 1;
                     cands.push(v);
                     pairs.push((i as u32, b));
@@ -290,10 +291,11 @@ impl Tracker {
             if k > 0.0 {
                 modes.push([sx / k, sy / k]);
             }
+            let clear = (DIFFERENT * s / bin).powi(2);
             for y in 0..bins {
                 for x in 0..bins {
-                    let d = (x as f64 - at.0 as f64).hypot(y as f64 - at.1 as f64) * bin;
-                    if d < DIFFERENT * s {
+                    let (dx, dy) = (x as f64 - at.0 as f64, y as f64 - at.1 as f64);
+                    if dx * dx + dy * dy < clear {
                         smooth[y * bins + x] = 0;
                     }
                 }

@@ -245,6 +245,46 @@ fn bad_inputs_are_refused_with_the_place_and_the_fix() {
     let bare = tmp.path().join("bare");
     std::fs::create_dir_all(&bare).unwrap();
     refused(&[bare.as_os_str()], &["frames.csv", "fix:"]);
+    // Impossible numbers, and a blank frame for a reference-free start or detection.
+    let f0: &std::ffi::OsStr = frame0.as_os_str();
+    for (flag, value) in [
+        ("--mm-per-px", "-1"),
+        ("--mm-per-px", "nan"),
+        ("--contact-min-change", "-0.5"),
+    ] {
+        refused(
+            &[
+                "--reference".as_ref(),
+                f0,
+                frame1.as_os_str(),
+                flag.as_ref(),
+                value.as_ref(),
+            ],
+            &[flag, "fix:"],
+        );
+    }
+    refused(
+        &["--reference-free".as_ref(), grey.as_os_str()],
+        &["grey.png", "fix:"],
+    );
+    refused(
+        &["--detect-only".as_ref(), grey.as_os_str()],
+        &["grey.png", "fix:"],
+    );
+    // markers.csv and contact.csv must not be one file.
+    let o = track(&[
+        "--reference".as_ref(),
+        f0,
+        frame1.as_os_str(),
+        "--out".as_ref(),
+        tmp.path().join("contact.csv").as_os_str(),
+    ]);
+    let (o_out, o_err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{o_out}\n{o_err}");
+    assert!(
+        o_err.contains("contact.csv") && o_err.contains("fix:"),
+        "{o_err}"
+    );
 }
 
 #[test]

@@ -66,8 +66,7 @@ pub(super) fn frame_list(input: &Input) -> Result<FrameList, TrackFailure> {
     match input {
         Input::ReferenceFree { frames } => {
             let Some((first, rest)) = frames.split_first() else {
-                return Err(TrackFailure::Read {
-                    path: PathBuf::new(),
+                return Err(TrackFailure::Usage {
                     detail: "no frames given; fix: pass the frames to track, first frame first"
                         .into(),
                 });

@@ -126,6 +126,12 @@ pub struct Summary {
 /// Why tracking stopped. `markers.csv` keeps every frame tracked before the failure.
 #[derive(Debug, thiserror::Error)]
 pub enum TrackFailure {
+    /// The options contradict each other.
+    #[error("{detail}")]
+    Usage {
+        /// What, and the fix.
+        detail: String,
+    },
     /// An input file is missing or unreadable.
     #[error("cannot read {path}: {detail}; fix: check the path (frames are PNG files)")]
     Read {
@@ -265,6 +271,15 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
     }
     let mut csv_out = csv::Writer::from_path(out).map_err(|e| write_err(out)(e.to_string()))?;
     let contact_path = contact.then(|| out.with_file_name("contact.csv"));
+    if contact_path.as_deref() == Some(out) {
+        return Err(TrackFailure::Usage {
+            detail: format!(
+                "--out {} would overwrite contact.csv, which is written beside it; fix: name \
+                 the --out file otherwise (e.g. markers.csv), or pass --no-contact",
+                out.display()
+            ),
+        });
+    }
     let mut contact_out = match &contact_path {
         Some(p) => Some(csv::Writer::from_path(p).map_err(|e| write_err(p)(e.to_string()))?),
         None => None,
@@ -339,10 +354,12 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
             f.frame(no, &pipeline)?;
         }
     }
+    // At most 16 decoders: each holds up to three frames in memory.
     let workers = match opts.decoders {
         0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
         n => n,
-    };
+    }
+    .min(16);
     let frame_count = frames.len();
     for decoded in DecodeAhead::new(frames, workers) {
         let (frame, path) = (decoded.frame, decoded.path);

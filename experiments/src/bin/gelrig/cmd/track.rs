@@ -41,14 +41,19 @@ pub(crate) struct Cmd {
     #[arg(long)]
     no_contact: bool,
     /// Image scale for contact.csv's mm columns [default: a run directory's own scale].
-    #[arg(long, value_name = "MM")]
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
     mm_per_px: Option<f64>,
     /// Smallest colour change (relative intensity) that can be contact. The default suits
     /// a camera with fixed exposure; a GelSight Mini's automatic exposure drifts by up to
     /// 0.16 on an untouched gel, so pass 0.2 for it.
-    #[arg(long, value_name = "CHANGE", default_value_t = 0.015)]
+    #[arg(
+        long,
+        value_name = "CHANGE",
+        default_value_t = 0.015,
+        allow_negative_numbers = true
+    )]
     contact_min_change: f64,
-    /// Threads decoding frames ahead of the tracker [default: one per core].
+    /// Threads decoding frames ahead of the tracker, at most 16 [default: one per core].
     #[arg(long, value_name = "N", default_value_t = 0)]
     decoders: usize,
 }

@@ -23,28 +23,7 @@ use serde_json::json;
 
 use super::Stop;
 use super::exec::Exec;
-use super::wait::{Deadline, Until};
-
-/// Where a move must come to rest, and how it is judged.
-#[derive(Debug, Clone)]
-pub(super) struct Arrival {
-    /// Absolute target, axis unit.
-    pub(super) target: f64,
-    /// In-position window, axis unit.
-    pub(super) window: f64,
-    /// Speed it was sent at (to send it again).
-    pub(super) speed: f64,
-    /// When the move was sent, ns.
-    pub(super) sent_ns: u64,
-    /// How long it may show no motion, ns.
-    pub(super) grace_ns: u64,
-    /// The device has reported motion since it was sent.
-    pub(super) seen_moving: bool,
-    /// Sends left before a miss fails the run.
-    pub(super) retries_left: u32,
-    /// mm or deg.
-    pub(super) unit: &'static str,
-}
+use super::wait::{Arrival, Deadline, Until};
 
 /// Slack on every move's deadline, s: acceleration, settling and polling latency.
 pub(super) const MOVE_GRACE_S: f64 = 5.0;

@@ -10,6 +10,27 @@ use super::settle::SettleTrack;
 use super::{Stop, watchdog::Monitor};
 use crate::protocol::schema::Channel;
 
+/// Where a move must come to rest, and how it is judged.
+#[derive(Debug, Clone)]
+pub(super) struct Arrival {
+    /// Absolute target, axis unit.
+    pub(super) target: f64,
+    /// In-position window, axis unit.
+    pub(super) window: f64,
+    /// Speed it was sent at (to send it again).
+    pub(super) speed: f64,
+    /// When the move was sent, ns.
+    pub(super) sent_ns: u64,
+    /// How long it may show no motion, ns.
+    pub(super) grace_ns: u64,
+    /// The device has reported motion since it was sent.
+    pub(super) seen_moving: bool,
+    /// Sends left before a miss fails the run.
+    pub(super) retries_left: u32,
+    /// mm or deg.
+    pub(super) unit: &'static str,
+}
+
 /// An axis that must come to rest by a deadline.
 pub(super) struct Deadline {
     pub(super) axis: AxisRole,
@@ -19,7 +40,7 @@ pub(super) struct Deadline {
     /// What it was doing, for the error ("a move from 9 to 10 mm at 2 mm/s").
     pub(super) what: String,
     /// Where it must come to rest; `None` when any rest will do (a stop).
-    pub(super) arrival: Option<super::motion::Arrival>,
+    pub(super) arrival: Option<Arrival>,
 }
 
 /// What [`Exec::wait`] waits for.

@@ -31,6 +31,9 @@ pub struct Progress {
     eta_total_s: f64,
     time_scale: Option<f64>,
     last_tick: Mutex<Instant>,
+    /// Steps completed so far: between steps (an approach, a trial's set-up) the bar stays
+    /// there instead of falling back to 0.
+    done: std::sync::atomic::AtomicU32,
 }
 
 impl Progress {
@@ -64,6 +67,7 @@ impl Progress {
             eta_total_s,
             time_scale,
             last_tick: Mutex::new(Instant::now()),
+            done: std::sync::atomic::AtomicU32::new(0),
         }
     }
 
@@ -89,12 +93,18 @@ impl Progress {
         }
     }
 
-    /// A step starts: `what` is e.g. `load normal → 0.336 mm`.
+    /// A step starts: `what` is e.g. `load normal → 0.336 mm`. Step 0 is the time between
+    /// steps (homing, an approach, a trial's set-up).
     pub fn step(&self, step: u32, what: &str, phase: &str, t_s: f64) {
         if let Some(pb) = &self.bar {
-            pb.set_position(step.saturating_sub(1) as u64);
+            let done = self.done.load(std::sync::atomic::Ordering::Relaxed);
+            pb.set_position(bar_position(step, done));
+            let label = match step {
+                0 => format!("after step {done}"),
+                k => format!("step {k}"),
+            };
             pb.set_message(format!(
-                "step {step}: {what} · {phase} · {}",
+                "{label}: {what} · {phase} · {}",
                 self.clock_text(t_s)
             ));
         }
@@ -123,6 +133,8 @@ impl Progress {
     /// A step is done; `line` summarises it.
     pub fn step_done(&self, step: u32, line: &str) {
         let text = format!("step {step}/{}: {line}", self.total_steps);
+        self.done
+            .fetch_max(step, std::sync::atomic::Ordering::Relaxed);
         if let Some(pb) = &self.bar {
             pb.set_position(step as u64);
             pb.println(text);
@@ -145,5 +157,31 @@ impl Progress {
         if let Some(pb) = &self.bar {
             pb.finish_and_clear();
         }
+    }
+}
+
+/// Where the bar stands while `step` runs (0: between steps) after `done` steps: a running
+/// step counts the ones before it; between steps the bar keeps what was done (a repeat's
+/// trials used to send it back to 0/N at every approach).
+fn bar_position(step: u32, done: u32) -> u64 {
+    match step {
+        0 => done as u64,
+        k => (k - 1) as u64,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bar_position;
+
+    #[test]
+    fn the_bar_never_falls_back_between_trials() {
+        // Trial 2's approach (step 0) after 5 steps: 5, not 0.
+        assert_eq!(bar_position(0, 5), 5);
+        // Step 6 running: 5 done.
+        assert_eq!(bar_position(6, 5), 5);
+        // Before anything: 0.
+        assert_eq!(bar_position(0, 0), 0);
+        assert_eq!(bar_position(1, 0), 0);
     }
 }

@@ -168,6 +168,17 @@ fn box_normal_flat_recovers_stiffness_relaxation_and_force_from_field() {
     assert!(s["hysteresis"]["loop_area"].as_f64().unwrap() > 0.0);
     assert!(s.get("slip").is_none());
     assert!(has(&s, "Hysteresis") && !has(&s, "Slip") && has(&s, "Displacement field"));
+    // Contact size from the frames: the 9.5 mm punch, every loaded step; the rendered edge is
+    // smoothed by the field grid, so the image reads it 8 % wide (README); the unloaded last
+    // step (a residual imprint) has no size.
+    assert!(has(&s, "Contact size"), "{:?}", sections(&s));
+    let contact = s["contact"].as_array().expect("a contact table");
+    assert_eq!(contact.len(), 19, "the 19 loaded steps");
+    for r in contact {
+        let radius = r["radius"].as_f64().unwrap();
+        assert_eq!(r["unit"], "mm");
+        assert!(radius > 4.75 && radius < 1.1 * 4.75, "{r}");
+    }
     // Settle error falls with the wait, against the fit and against the truth.
     let e: Vec<f64> = s["settle"]["median_abs_error_vs_truth"]
         .as_array()
@@ -227,6 +238,7 @@ fn sections_appear_only_where_they_apply() {
     let (outcome, _) = run_virtual(&loaded, &tmp.path().join("runs"), 1, None);
     let (_, s) = report(&outcome.dir);
     assert!(!has(&s, "Displacement field"), "{:?}", sections(&s));
+    assert!(!has(&s, "Contact size"), "{:?}", sections(&s));
     assert!(s.get("force_from_field").is_none());
     assert!(has(&s, "Linearity") && has(&s, "Hysteresis") && has(&s, "Relaxation"));
     // Grasp trials: no quasistatic steps, so only the force record.

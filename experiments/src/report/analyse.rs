@@ -362,13 +362,7 @@ pub(super) fn frame_field(data: &RunData, frame: u64) -> Option<MarkerField> {
 
 /// The field at the end of step `step` (its last frame).
 fn step_field(data: &RunData, step: u32) -> Option<MarkerField> {
-    let frame = data
-        .frames
-        .iter()
-        .filter(|f| f.step == step)
-        .map(|f| f.frame)
-        .max()?;
-    frame_field(data, frame)
+    frame_field(data, data.last_frame_of(step)?)
 }
 
 pub(super) fn spacing_px(f: &MarkerField) -> f64 {

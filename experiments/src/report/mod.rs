@@ -8,6 +8,7 @@
 //! no field sections, a run that never unloads no hysteresis, a normal-only run no slip.
 
 mod analyse;
+mod contact;
 pub mod plots;
 mod write;
 
@@ -92,6 +93,9 @@ pub(crate) struct SimRow {
     pub twist_slips: u32,
     pub shear_stick_fraction: Option<f64>,
     pub twist_stick_fraction: Option<f64>,
+    /// Contact radius of the simulated contact, mm (older runs lack the column).
+    #[serde(default)]
+    pub contact_radius_mm: Option<f64>,
 }
 
 /// One row of `frames.csv`.
@@ -126,6 +130,19 @@ pub(crate) struct RunData {
     pub markers: BTreeMap<u64, Vec<MarkerRow>>,
     /// Frame size, px, when frames exist.
     pub frame_size: Option<(usize, usize)>,
+    /// The contact region per frame (`contact.csv`), when frames exist.
+    pub contact: Vec<contact::ContactRow>,
+}
+
+impl RunData {
+    /// The last frame of `step`: taken at the end of its settle, like its force window.
+    pub(crate) fn last_frame_of(&self, step: u32) -> Option<u64> {
+        self.frames
+            .iter()
+            .filter(|f| f.step == step)
+            .map(|f| f.frame)
+            .max()
+    }
 }
 
 fn read_csv<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<Vec<T>, ReportError> {
@@ -171,9 +188,10 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, ReportError> {
     let frames: Vec<FrameRow> = read_optional(&dir.join("frames.csv"))?.unwrap_or_default();
     let mut markers = BTreeMap::new();
     let mut frame_size = None;
+    let mut contact = Vec::new();
     if frames.len() > 1 {
         let path = dir.join("markers.csv");
-        if !path.is_file() {
+        if !path.is_file() || !dir.join("contact.csv").is_file() {
             crate::track::track(
                 &crate::track::Input::RunDir {
                     dir: dir.to_path_buf(),
@@ -191,6 +209,7 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, ReportError> {
             markers.entry(m.frame).or_insert_with(Vec::new).push(m);
         }
         frame_size = first_frame_size(dir);
+        contact = read_optional(&dir.join("contact.csv"))?.unwrap_or_default();
     }
     Ok(RunData {
         dir: dir.to_path_buf(),
@@ -201,6 +220,7 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, ReportError> {
         frames,
         markers,
         frame_size,
+        contact,
     })
 }
 

@@ -93,6 +93,14 @@ pub(super) fn write(data: &RunData, r: &Report, dir: &Path) -> Result<Written, R
         lin["sim_slope"] = num(slope);
     }
     relaxation_section(r, &mut out, &mut summary)?;
+    if let Some((title, text, rows)) = super::contact::section(data) {
+        out.sections.push(Section {
+            title,
+            text,
+            plots: Vec::new(),
+        });
+        summary["contact"] = rows;
+    }
     if let Some(note) = &r.model_note {
         summary["notes"] = json!([note]);
     }
@@ -683,13 +691,7 @@ fn field_pictures(data: &RunData, b: &Block, out: &Out) -> Result<Vec<String>, R
     else {
         return Ok(Vec::new());
     };
-    let Some(frame) = data
-        .frames
-        .iter()
-        .filter(|f| f.step == s.step)
-        .map(|f| f.frame)
-        .max()
-    else {
+    let Some(frame) = data.last_frame_of(s.step) else {
         return Ok(Vec::new());
     };
     let (Some(field), Some((w, h))) = (super::analyse::frame_field(data, frame), data.frame_size)

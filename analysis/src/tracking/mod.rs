@@ -295,7 +295,15 @@ impl Pipeline {
         params: &TrackParams,
         method: Method,
     ) -> Result<Self, TrackError> {
-        let reference = Reference::new(reference_frame, params)?;
+        Ok(Self::around(
+            Reference::new(reference_frame, params)?,
+            method,
+        ))
+    }
+
+    /// A pipeline around a measured reference (LK templates from its image when the
+    /// method uses them).
+    fn around(reference: Reference, method: Method) -> Self {
         let tracker = Tracker::new(&reference);
         let (w, h) = (reference.width(), reference.height());
         let lk = (method != Method::Centroid).then(|| {
@@ -306,7 +314,7 @@ impl Pipeline {
                 lk::LkParams::for_radius(reference.radius_px(), 3),
             )
         });
-        Ok(Self {
+        Self {
             detector: Detector::new(w, h),
             lk_displacement: vec![[0.0; 2]; tracker.len()],
             tracker,
@@ -315,7 +323,7 @@ impl Pipeline {
             lk,
             contact: None,
             last_contact: None,
-        })
+        }
     }
 
     /// A pipeline for a recording that starts mid-contact, with no image of the untouched
@@ -356,18 +364,7 @@ impl Pipeline {
                     || p[1] > h as f64 - 2.0 - r,
             })
             .collect();
-        let reference = seen.with_markers(sites, fit.spacing_px());
-        let tracker = Tracker::new(&reference);
-        let mut pipeline = Self {
-            detector: Detector::new(w, h),
-            lk_displacement: vec![[0.0; 2]; tracker.len()],
-            tracker,
-            reference,
-            method,
-            lk: None,
-            contact: None,
-            last_contact: None,
-        };
+        let mut pipeline = Self::around(seen.with_markers(sites, fit.spacing_px()), method);
         pipeline.track(first_frame)?;
         Ok((pipeline, fit))
     }

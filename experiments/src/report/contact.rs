@@ -20,9 +20,13 @@ pub(crate) struct ContactRow {
 /// The section's title, markdown and `summary.json` entry, when any step shows contact.
 pub(super) fn section(data: &RunData) -> Option<(String, String, Value)> {
     // A region on a step without load is the gel's slow recovery (a residual imprint), not
-    // contact: steps under 2 % of the largest normal force are shown without a size.
+    // contact: a normal step at or above the contact point, or any other step under 2 % of
+    // the largest normal force, is shown without a size.
     let max_fz = data.steps.iter().map(|s| s.fz_n.abs()).fold(0.0, f64::max);
-    let loaded = |fz: f64| fz.abs() >= 0.02 * max_fz;
+    let loaded = |s: &super::StepRow| match (s.axis.as_str(), s.position) {
+        ("normal", Some(depth)) => depth > 0.0,
+        _ => s.fz_n.abs() >= 0.02 * max_fz,
+    };
     let mut rows = Vec::new();
     for s in &data.steps {
         let Some(frame) = data.last_frame_of(s.step) else {
@@ -38,16 +42,13 @@ pub(super) fn section(data: &RunData) -> Option<(String, String, Value)> {
             .and_then(|r| r.contact_radius_mm);
         rows.push((s, c, sim));
     }
-    if !rows
-        .iter()
-        .any(|(s, c, _)| c.area_px2 > 0.0 && loaded(s.fz_n))
-    {
+    if !rows.iter().any(|(s, c, _)| c.area_px2 > 0.0 && loaded(s)) {
         return None;
     }
     let mm = rows.iter().all(|(_, c, _)| c.radius_mm.is_some());
     let unit = if mm { "mm" } else { "px" };
     let mut text = format!(
-        "Contact region per step from the frames (`contact.csv`, the step's last frame): \
+        "Contact region per step from the frames (contact.csv, the step's last frame): \
          the colour change against the untouched gel, its edge where the surface tilts \
          most. Equivalent radius √(area/π), {unit}.\n\n"
     );
@@ -68,9 +69,9 @@ pub(super) fn section(data: &RunData) -> Option<(String, String, Value)> {
             .position
             .map(|p| format!("{p:.3} {}", s.unit))
             .unwrap_or_else(|| "—".into());
-        if !loaded(s.fz_n) {
+        if !loaded(s) {
             text.push_str(&format!(
-                "| {} | {position} | — | — | — |{} (no load: residual imprint)\n",
+                "| {} | {position} | — | no load (a residual imprint) | — |{}\n",
                 s.step,
                 if with_sim { " — | — |" } else { "" }
             ));

@@ -100,6 +100,7 @@ impl Progress {
             let done = self.done.load(std::sync::atomic::Ordering::Relaxed);
             pb.set_position(bar_position(step, done));
             let label = match step {
+                0 if done == 0 => "before step 1".to_string(),
                 0 => format!("after step {done}"),
                 k => format!("step {k}"),
             };

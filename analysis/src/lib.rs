@@ -19,6 +19,7 @@
 //! - [`hysteresis`]: loading against unloading.
 //! - [`slip`]: stick, incipient slip and slip per step from three cues.
 //! - [`field_force`]: force from the displacement field against a reference field.
+//! - [`tactile`]: a grasp's slip state frame by frame (stick, incipient, slip).
 
 pub mod field;
 pub mod field_force;
@@ -26,4 +27,5 @@ pub mod hysteresis;
 pub mod linearity;
 pub mod relaxation;
 pub mod slip;
+pub mod tactile;
 pub mod tracking;

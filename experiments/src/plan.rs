@@ -264,6 +264,10 @@ pub fn plan(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> Plan {
                         Target::By(v) => Range::point(v.abs() / s.speed),
                         Target::To(_) => pos_dist(here, to, o).scale(1.0 / s.speed),
                     };
+                    if s.until_slip.is_some() {
+                        // A move that stops on touch may stop at once.
+                        d.min = 0.0;
+                    }
                     pos.insert(axis, to);
                 }
                 let (smin, smax) = s.settle.bounds_s();

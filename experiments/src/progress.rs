@@ -34,6 +34,8 @@ pub struct Progress {
     /// Steps completed so far: between steps (an approach, a trial's set-up) the bar stays
     /// there instead of falling back to 0.
     done: std::sync::atomic::AtomicU32,
+    /// The grasp's tactile state while frames are tracked live (e.g. `slip: stick`).
+    tactile: Mutex<Option<String>>,
 }
 
 impl Progress {
@@ -68,6 +70,7 @@ impl Progress {
             time_scale,
             last_tick: Mutex::new(Instant::now()),
             done: std::sync::atomic::AtomicU32::new(0),
+            tactile: Mutex::new(None),
         }
     }
 
@@ -104,11 +107,26 @@ impl Progress {
                 0 => format!("after step {done}"),
                 k => format!("step {k}"),
             };
+            let tactile = self
+                .tactile
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .as_ref()
+                .map(|t| format!(" · {t}"))
+                .unwrap_or_default();
             pb.set_message(format!(
-                "{label}: {what} · {phase} · {}",
+                "{label}: {what} · {phase}{tactile} · {}",
                 self.clock_text(t_s)
             ));
         }
+    }
+
+    /// The live tactile text shown in the line (`None` hides it).
+    pub fn set_tactile(&self, text: Option<String>) {
+        *self
+            .tactile
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = text;
     }
 
     /// The phase changes within a step.

@@ -184,7 +184,7 @@ impl Contact {
     }
 
     fn cylinder_length_mm(&self, length_mm: f64) -> f64 {
-        length_mm.min(self.layer.length_mm)
+        length_mm.min(self.layer.width_mm)
     }
 
     fn kappa(&self, a_mm: f64) -> f64 {

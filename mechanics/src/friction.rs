@@ -229,6 +229,25 @@ impl FrictionElement {
         self.force
     }
 
+    /// Holds the force within a static limit that has just fallen (a squeeze that relaxes
+    /// or opens without the contact moving): beyond it the contact goes into full slip at the
+    /// kinetic limit, as [`Self::update`] would on the next move. Returns the force.
+    pub fn cap(&mut self, static_limit: f64, kinetic: f64) -> f64 {
+        if self.force.abs() > static_limit && !self.sliding {
+            self.slips += 1;
+            self.sliding = true;
+            self.dir = self.force.signum();
+            self.force = self.dir * kinetic * static_limit;
+            self.anchor = self.last_x;
+            self.q0 = self.force;
+            self.virgin = false;
+        } else if self.sliding && self.force.abs() > kinetic * static_limit {
+            self.force = self.force.signum() * kinetic * static_limit;
+            self.q0 = self.force;
+        }
+        self.force
+    }
+
     /// Marks the contact as at rest: the next move in the same direction re-sticks and
     /// loads a fresh branch from the current force (stick-slip).
     pub fn rest(&mut self) {

@@ -110,7 +110,8 @@ pub enum Indenter {
         /// Sphere diameter.
         diameter_mm: f64,
     },
-    /// Cylinder lying on the pad with its axis along y (a can in a grasp).
+    /// Cylinder lying on the pad with its axis along x (a can in a grasp: its weight pulls
+    /// along the axis, the direction the tangential solver loads).
     Cylinder {
         /// Cylinder diameter.
         diameter_mm: f64,

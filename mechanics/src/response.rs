@@ -201,7 +201,7 @@ fn tol() -> Tolerance {
 }
 
 /// Profile of a curved indenter (mm above its lowest point) at (x, y); large outside it.
-fn profile(ind: &Indenter, layer_length: f64, x: f64, y: f64) -> f64 {
+fn profile(ind: &Indenter, layer_width: f64, x: f64, y: f64) -> f64 {
     const AWAY: f64 = 1e3;
     match *ind {
         Indenter::Sphere { diameter_mm } => {
@@ -218,9 +218,11 @@ fn profile(ind: &Indenter, layer_length: f64, x: f64, y: f64) -> f64 {
             length_mm,
         } => {
             let r = diameter_mm / 2.0;
-            let half = length_mm.min(layer_length) / 2.0;
-            if y.abs() <= half && x.abs() < r {
-                r - (r * r - x * x).sqrt()
+            // Axis along x, the direction the tangential solver loads: a can's weight pulls
+            // along its own axis (thesis §6.3), so the grasp's shear runs along the strip.
+            let half = length_mm.min(layer_width) / 2.0;
+            if x.abs() <= half && y.abs() < r {
+                r - (r * r - y * y).sqrt()
             } else {
                 AWAY
             }
@@ -312,7 +314,7 @@ impl ContactModel {
         } else {
             let radius = extent / 2.0;
             let length = match contact.indenter {
-                Indenter::Cylinder { length_mm, .. } => length_mm.min(contact.layer.length_mm),
+                Indenter::Cylinder { length_mm, .. } => length_mm.min(contact.layer.width_mm),
                 _ => 0.0,
             };
             let a = (radius * 0.005 * h).sqrt();
@@ -659,7 +661,7 @@ impl ContactModel {
         let h = c.layer.thickness_mm;
         let a = self.contact_radius_mm(depth_mm).max(1e-3);
         let length = match c.indenter {
-            Indenter::Cylinder { length_mm, .. } => length_mm.min(c.layer.length_mm),
+            Indenter::Cylinder { length_mm, .. } => length_mm.min(c.layer.width_mm),
             _ => 0.0,
         };
         let extent = 2.4 * a;
@@ -700,7 +702,7 @@ impl ContactModel {
                 let prof: Vec<f64> = (0..g.len())
                     .map(|i| {
                         let (x, y) = g.xy(i);
-                        profile(&c.indenter, c.layer.length_mm, x, y)
+                        profile(&c.indenter, c.layer.width_mm, x, y)
                     })
                     .collect();
                 normal_unknown_area(op, &prof, depth_mm, None, tol()).p
@@ -849,7 +851,7 @@ impl ContactModel {
             _ => 1.0,
         };
         let length = match c.indenter {
-            Indenter::Cylinder { length_mm, .. } => length_mm.min(c.layer.length_mm),
+            Indenter::Cylinder { length_mm, .. } => length_mm.min(c.layer.width_mm),
             _ => 0.0,
         };
         let fractions = [
@@ -877,7 +879,7 @@ impl ContactModel {
             let prof: Vec<f64> = (0..grid.len())
                 .map(|i| {
                     let (x, y) = grid.xy(i);
-                    profile(&c.indenter, c.layer.length_mm, x, y)
+                    profile(&c.indenter, c.layer.width_mm, x, y)
                 })
                 .collect();
             let s = normal_unknown_area(&op, &prof, d, None, tol());

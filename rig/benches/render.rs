@@ -96,5 +96,58 @@ fn render(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, render);
+/// PNG encoding of a rendered portable frame (what the recorder's frame writer does per
+/// frame): the default deflate level against the fast one it uses. The sizes are printed.
+fn encode(c: &mut Criterion) {
+    use image::ImageEncoder;
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    let s = spec(
+        MarkerLayout::Random {
+            spacing_mm: 2.0,
+            size_mm: 0.7,
+        },
+        (20.0, 15.0),
+        2.0,
+        Indenter::FlatCircle { diameter_mm: 12.5 },
+    );
+    let (rgb, _) = Renderer::new(&s, 640, 480).render(None, 7);
+    let mut group = c.benchmark_group("png_640x480");
+    for (name, comp, filter) in [
+        ("default", CompressionType::Default, FilterType::Adaptive),
+        ("fast_sub", CompressionType::Fast, FilterType::Sub),
+    ] {
+        let once = |out: &mut Vec<u8>| {
+            PngEncoder::new_with_quality(out, comp, filter)
+                .write_image(&rgb, 640, 480, image::ExtendedColorType::Rgb8)
+                .expect("encode");
+        };
+        let mut probe = Vec::new();
+        once(&mut probe);
+        eprintln!("png_640x480/{name}: {} bytes", probe.len());
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                let mut out = Vec::with_capacity(rgb.len());
+                once(&mut out);
+                out
+            })
+        });
+    }
+    // What the recorder did before: `RgbImage::write_to(…, ImageFormat::Png)`.
+    let img = image::RgbImage::from_raw(640, 480, rgb.clone()).expect("frame");
+    let mut probe = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut probe, image::ImageFormat::Png)
+        .expect("encode");
+    eprintln!("png_640x480/write_to: {} bytes", probe.get_ref().len());
+    group.bench_function("write_to", |b| {
+        b.iter(|| {
+            let mut out = std::io::Cursor::new(Vec::with_capacity(rgb.len()));
+            img.write_to(&mut out, image::ImageFormat::Png)
+                .expect("encode");
+            out
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, render, encode);
 criterion_main!(benches);

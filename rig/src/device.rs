@@ -257,6 +257,34 @@ pub struct SimTruth {
     pub twist_slips: u32,
     /// Times a grasped object slipped out of the grasp.
     pub object_slips: u32,
+    /// The grasped can's motion and the gel's stick state (lifting trials only).
+    pub grasp: Option<GraspTruth>,
+}
+
+/// Ground truth of a simulated grasp (thesis §6.3): what tactile slip detection is scored
+/// against.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct GraspTruth {
+    /// The can's height above where it stood on the table, mm.
+    pub height_mm: f64,
+    /// The can's velocity relative to the pads, mm/s (negative: sliding down).
+    pub slip_mm_s: f64,
+    /// How far the can has slid through the grasp since it was taken, mm.
+    pub slid_mm: f64,
+    /// The can's rotation in the grasp, degrees.
+    pub angle_deg: f64,
+    /// Fraction of the gel's contact that sticks (1 at rest, 0 in gross slip).
+    pub gel_stick_fraction: f64,
+    /// Gross slip on the gel side now.
+    pub sliding: bool,
+    /// The can turns in the grasp now (the gel's twist in full slip).
+    pub rotating: bool,
+    /// The can stands on the table.
+    pub on_table: bool,
+    /// Gross slips through the grasp so far.
+    pub slips: u32,
+    /// Falls from the air back onto the table so far.
+    pub drops: u32,
 }
 
 /// A six-axis force/torque sensor.

@@ -240,7 +240,7 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                         cfg.fps.hz()
                     ),
                 };
-                Box::new(SimCamera::new(info, p, req.clock.clone()))
+                Box::new(SimCamera::new(info, p, req.clock.clone(), req.seed))
             }
             CameraDriver::ImageFolder => {
                 let path = std::path::PathBuf::from(cfg.path.clone().unwrap_or_default());

@@ -7,6 +7,7 @@
 mod dry_run;
 mod faults;
 mod fuzz;
+mod grasp;
 mod hostile;
 mod motion;
 mod peers;

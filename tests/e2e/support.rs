@@ -29,7 +29,7 @@ pub(crate) fn sim_rig() -> PathBuf {
 }
 
 /// Every shipped protocol's name.
-pub(crate) const SHIPPED: [&str; 10] = [
+pub(crate) const SHIPPED: [&str; 12] = [
     "box-normal-flat",
     "box-shear-flat",
     "box-normal-sphere",
@@ -40,6 +40,8 @@ pub(crate) const SHIPPED: [&str; 10] = [
     "portable-shear",
     "portable-rotation",
     "lifting-can",
+    "lifting-can-slip",
+    "lifting-can-regrip",
 ];
 
 /// Path of the `gelrig` binary of this build profile, built (or brought up to date) once

@@ -191,7 +191,7 @@ pub enum IndenterSpec {
         /// Diameter.
         diameter: Length,
     },
-    /// Cylinder lying along y (a can in a grasp).
+    /// Cylinder lying along x (a can in a grasp; its weight pulls along the axis).
     Cylinder {
         /// Diameter.
         diameter: Length,
@@ -490,9 +490,40 @@ pub struct Move {
     /// What to record at the end.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub capture: Option<Capture>,
+    /// Stop early on a tactile condition, e.g. `until: {slip: incipient}` (needs frames).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub until: Option<MoveUntil>,
     /// Label written to `steps.csv`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub label: Option<String>,
+}
+
+/// A move's early stop on what the GelSight feels.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MoveUntil {
+    /// Stop when the grasp's slip state reaches this level.
+    pub slip: SlipLevel,
+}
+
+/// A slip state a move can stop at (thesis §6.3: the markers feel slip coming).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SlipLevel {
+    /// Part of the contact slips: the grasp is about to lose the object.
+    Incipient,
+    /// The object slides through the grasp.
+    Slip,
+}
+
+impl SlipLevel {
+    /// The slip state this level is reached at.
+    pub fn state(self) -> analysis::tactile::SlipState {
+        match self {
+            SlipLevel::Incipient => analysis::tactile::SlipState::Incipient,
+            SlipLevel::Slip => analysis::tactile::SlipState::Slip,
+        }
+    }
 }
 
 /// `capture`.

@@ -20,6 +20,7 @@
 //! `force.csv`, `axes.csv`, `frames.csv` with `frames/*.png`; `run.reserve` while running.
 
 mod files;
+mod frame_writer;
 mod manifest;
 mod rows;
 
@@ -29,10 +30,11 @@ use std::path::{Path, PathBuf};
 use rig::{ForceSample, Frame, SimTruth, Wrench};
 
 pub use files::write_atomic;
-use files::{Appender, CsvFile, Reserve, io, write_new};
+use files::{Appender, CsvFile, Reserve, io};
+use frame_writer::FrameWriter;
 pub use manifest::{DeviceRecord, Manifest, Status, is_locked, read_manifest, run_file};
-pub use rows::StepRow;
-use rows::{AxesRow, ForceRow, FrameRow, MarkerTruthRow, SimStepRow, round6};
+use rows::{AxesRow, ForceRow, SimStepRow, round6};
+pub use rows::{StepRow, TactileRow};
 
 /// Failure to record.
 #[derive(Debug, thiserror::Error)]
@@ -73,9 +75,9 @@ pub struct Recorder {
     steps: CsvFile,
     force: Option<CsvFile>,
     axes: Option<CsvFile>,
-    frames: Option<CsvFile>,
+    frames: Option<FrameWriter>,
     sim_steps: Option<CsvFile>,
-    sim_markers: Option<CsvFile>,
+    tactile: Option<CsvFile>,
     frame_count: u64,
     reserve: Reserve,
     /// The first write failure; data is no longer written once set.
@@ -168,7 +170,7 @@ impl Recorder {
             axes: None,
             frames: None,
             sim_steps: None,
-            sim_markers: None,
+            tactile: None,
             frame_count: 0,
             reserve,
             broken: None,
@@ -320,50 +322,11 @@ impl Recorder {
         if self.frames.is_none() {
             let d = self.dir.join("frames");
             fs::create_dir_all(&d).map_err(io(&d))?;
-            self.frames = Some(CsvFile::create(self.dir.join("frames.csv"))?);
+            self.frames = Some(FrameWriter::start(self.dir.clone())?);
         }
         let n = self.frame_count;
-        let file = format!("frames/{n:06}.png");
-        let path = self.dir.join(&file);
-        let frame_err = |detail: String| RecordError::Frame {
-            path: path.clone(),
-            detail,
-        };
-        let img = image::RgbImage::from_raw(frame.width, frame.height, frame.rgb.clone())
-            .ok_or_else(|| {
-                frame_err(format!(
-                    "{} bytes do not make a {}×{} RGB image",
-                    frame.rgb.len(),
-                    frame.width,
-                    frame.height
-                ))
-            })?;
-        let mut png = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut png, image::ImageFormat::Png)
-            .map_err(|e| frame_err(e.to_string()))?;
-        write_new(&path, png.get_ref())?;
-        let row = FrameRow {
-            frame: n,
-            t_ns: frame.t_ns,
-            step,
-            trial,
-            file: &file,
-            seq: frame.seq,
-        };
         if let Some(w) = &mut self.frames {
-            w.row(&row)?;
-        }
-        if let Some(truth) = &frame.truth_px {
-            let path = self.dir.join("sim_markers.csv");
-            for (id, [x, y]) in truth.iter().enumerate() {
-                let row = MarkerTruthRow {
-                    frame: n,
-                    id,
-                    x_px: round6(*x),
-                    y_px: round6(*y),
-                };
-                append_to(&mut self.sim_markers, path.clone(), &row)?;
-            }
+            w.send(n, frame, step, trial)?;
         }
         self.frame_count += 1;
         Ok(n)
@@ -396,16 +359,25 @@ impl Recorder {
         .map(|_| ())
     }
 
+    /// Appends a frame's live tactile state to `tactile.csv`.
+    pub fn tactile(&mut self, row: &TactileRow) -> Result<(), RecordError> {
+        self.data(|r| append_to(&mut r.tactile, r.dir.join("tactile.csv"), row))
+            .map(|_| ())
+    }
+
     /// Appends a step row and makes it, and everything recorded before it, durable.
     pub fn step(&mut self, row: &StepRow) -> Result<(), RecordError> {
         self.data(|r| {
             r.steps.row(row)?;
             r.steps.sync()?;
-            for w in [&mut r.force, &mut r.axes, &mut r.frames]
+            for w in [&mut r.force, &mut r.axes, &mut r.tactile]
                 .into_iter()
                 .flatten()
             {
                 w.sync()?;
+            }
+            if let Some(f) = &mut r.frames {
+                f.sync()?;
             }
             r.manifest.steps_completed = r.manifest.steps_completed.max(row.step);
             Ok(())
@@ -416,6 +388,15 @@ impl Recorder {
     /// Frames written so far.
     pub fn frames_written(&self) -> u64 {
         self.frame_count
+    }
+
+    /// Waits until every frame handed over is written; the frame writer's first failure,
+    /// if any (the recorder is then broken).
+    pub fn flush_frames(&mut self) -> Result<(), RecordError> {
+        match self.frames.as_mut().map(FrameWriter::finish) {
+            Some(Err(e)) => Err(self.fail(e)),
+            _ => Ok(()),
+        }
     }
 
     /// Ends the recording: the reserve is given back.

@@ -153,3 +153,53 @@ pub(super) struct FrameRow<'a> {
     pub(super) file: &'a str,
     pub(super) seq: u64,
 }
+
+/// One row of `tactile.csv`: a frame's live tactile state in a grasp (thesis §6.3) and, on
+/// a simulated bench, the truth it is scored against.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TactileRow {
+    /// Frame number (as in `frames.csv`).
+    pub frame: u64,
+    /// Exposure time on the run's timebase, ns.
+    pub t_ns: u64,
+    /// Step running (0 between steps).
+    pub step: u32,
+    /// Trial.
+    pub trial: u32,
+    /// stick, incipient or slip.
+    pub state: String,
+    /// A pressing field is set (the grip has closed).
+    pub gripping: bool,
+    /// Share of contact markers following the contact's rigid motion.
+    pub stuck_fraction: f64,
+    /// Rigid shear of the contact (total − pressing field), px.
+    pub shear_x_px: f64,
+    /// See `shear_x_px`.
+    pub shear_y_px: f64,
+    /// Rotation of the contact about the normal, degrees.
+    pub rotation_deg: f64,
+    /// Rms frame-to-frame change of the field inside the contact, px.
+    pub differential_px: f64,
+    /// Rms of the total field, px.
+    pub total_px: f64,
+    /// Markers inside the contact.
+    pub contact_markers: u32,
+    /// Contact area from the image, mm² (empty without an image scale).
+    pub contact_area_mm2: Option<f64>,
+    /// Contact area over its value at the end of the grip.
+    pub area_ratio: f64,
+    /// Tracking and judging this frame took, ms.
+    pub ms: f64,
+    /// Simulated: fraction of the gel's contact that sticks.
+    pub true_stick_fraction: Option<f64>,
+    /// Simulated: the object's velocity relative to the pads, mm/s.
+    pub true_slip_mm_s: Option<f64>,
+    /// Simulated: the object's height above the table, mm.
+    pub true_height_mm: Option<f64>,
+    /// Simulated: the object slides through the grasp (gross slip).
+    pub true_sliding: Option<bool>,
+    /// Simulated: the object turns in the grasp (the gel's twist in full slip).
+    pub true_rotating: Option<bool>,
+    /// Simulated: the object stands on the table.
+    pub true_on_table: Option<bool>,
+}

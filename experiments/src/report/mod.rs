@@ -10,6 +10,8 @@
 mod analyse;
 mod contact;
 pub mod plots;
+mod snapshots;
+mod trials;
 mod write;
 
 use std::collections::BTreeMap;
@@ -69,6 +71,9 @@ pub(crate) struct StepRow {
     pub force_window_s: f64,
     pub t_start_ns: u64,
     pub settle_end_ns: u64,
+    /// End of the step (after its capture).
+    #[serde(default)]
+    pub t_end_ns: u64,
 }
 
 /// One row of `force.csv`.
@@ -76,6 +81,8 @@ pub(crate) struct StepRow {
 pub(crate) struct ForceRow {
     pub t_ns: u64,
     pub step: u32,
+    #[serde(default)]
+    pub trial: u32,
     pub fx_n: f64,
     pub fy_n: f64,
     pub fz_n: f64,
@@ -132,6 +139,8 @@ pub(crate) struct RunData {
     pub frame_size: Option<(usize, usize)>,
     /// The contact region per frame (`contact.csv`), when frames exist.
     pub contact: Vec<contact::ContactRow>,
+    /// The live tactile state per frame (`tactile.csv`), when the run tracked frames live.
+    pub tactile: Vec<trials::TactileCsvRow>,
 }
 
 impl RunData {
@@ -221,6 +230,7 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, ReportError> {
         markers,
         frame_size,
         contact,
+        tactile: trials::read_tactile(dir)?,
     })
 }
 

@@ -45,6 +45,18 @@ pub struct Series {
     pub colour: usize,
 }
 
+impl Series {
+    /// A connected line.
+    pub fn line(name: &str, points: Vec<(f64, f64)>, colour: usize) -> Self {
+        Self {
+            name: name.into(),
+            points,
+            mark: Mark::Line,
+            colour,
+        }
+    }
+}
+
 /// A chart.
 #[derive(Debug, Clone, Default)]
 pub struct Chart {
@@ -62,7 +74,17 @@ pub struct Chart {
     pub markers: Vec<(f64, String)>,
     /// Logarithmic y axis.
     pub log_y: bool,
+    /// The legend in the upper right corner instead of the upper left.
+    pub legend_upper_right: bool,
 }
+
+/// Colours of the vertical marker lines, told apart from the series' palette.
+const MARKER_PALETTE: [RGBColor; 4] = [
+    RGBColor(148, 103, 189),
+    RGBColor(40, 40, 40),
+    RGBColor(227, 119, 194),
+    RGBColor(140, 86, 75),
+];
 
 const PALETTE: [RGBColor; 6] = [
     RGBColor(31, 119, 180),
@@ -155,18 +177,16 @@ where
                 )))
                 .map_err(e)?;
             }
-            for (x, label) in &chart.markers {
+            for (k, (x, label)) in chart.markers.iter().enumerate() {
+                let c = MARKER_PALETTE[k % MARKER_PALETTE.len()];
                 ctx.draw_series(std::iter::once(PathElement::new(
                     vec![(*x, y0), (*x, y1)],
-                    RGBColor(148, 103, 189).stroke_width(2),
+                    c.stroke_width(2),
                 )))
                 .map_err(e)?
                 .label(label.as_str())
-                .legend(|(x, y)| {
-                    PathElement::new(
-                        vec![(x, y), (x + 16, y)],
-                        RGBColor(148, 103, 189).stroke_width(2),
-                    )
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2))
                 });
             }
             for s in &chart.series {
@@ -199,7 +219,11 @@ where
                 .background_style(WHITE.mix(0.85))
                 .border_style(RGBColor(200, 200, 200))
                 .label_font(("sans-serif", 12))
-                .position(SeriesLabelPosition::UpperLeft)
+                .position(if chart.legend_upper_right {
+                    SeriesLabelPosition::UpperRight
+                } else {
+                    SeriesLabelPosition::UpperLeft
+                })
                 .draw()
                 .map_err(e)?;
         }};

@@ -101,6 +101,32 @@ pub(super) fn write(data: &RunData, r: &Report, dir: &Path) -> Result<Written, R
         });
         summary["contact"] = rows;
     }
+    let grasp = super::trials::analyse(data, &data.tactile);
+    if let Some((title, text, json, charts)) = super::trials::section(data, &grasp, &data.tactile) {
+        let mut plots = Vec::new();
+        for (name, chart) in &charts {
+            plots.push(out.plot(name, chart)?);
+        }
+        let mut text = text;
+        let mut pictures = 0;
+        for t in &grasp {
+            let shots = super::snapshots::write(data, t, &out.dir)?;
+            pictures += shots.len();
+            plots.extend(shots.into_iter().map(|(file, _)| file));
+        }
+        if pictures > 0 {
+            text.push_str(
+                "\nField snapshots per trial (Fig. 6-20 to 6-24): the total field and the \
+                 differential field (from the frame before) at the grip, the end of the lift, \
+                 the hold, the disturbance's largest twist and the tactile warning \
+                 (`trial_NNN_<moment>_<total|differential>.svg`; arrows magnified so the \
+                 largest is 20 px).\n",
+            );
+        }
+        out.sections.push(Section { title, text, plots });
+        summary["trials"] = json["trials"].clone();
+        summary["trial_stats"] = json["trial_stats"].clone();
+    }
     if let Some(note) = &r.model_note {
         summary["notes"] = json!([note]);
     }
@@ -136,30 +162,10 @@ fn force_time(data: &RunData, out: &mut Out) -> Result<(), ReportError> {
         x_label: "time (s)".into(),
         y_label: "force (N), torque (N·mm)".into(),
         series: vec![
-            Series {
-                name: "Fz".into(),
-                points: pts(&|r| r.fz_n),
-                mark: Mark::Line,
-                colour: 0,
-            },
-            Series {
-                name: "Fx".into(),
-                points: pts(&|r| r.fx_n),
-                mark: Mark::Line,
-                colour: 1,
-            },
-            Series {
-                name: "Fy".into(),
-                points: pts(&|r| r.fy_n),
-                mark: Mark::Line,
-                colour: 2,
-            },
-            Series {
-                name: "Tz".into(),
-                points: pts(&|r| r.tz_nmm),
-                mark: Mark::Line,
-                colour: 3,
-            },
+            Series::line("Fz", pts(&|r| r.fz_n), 0),
+            Series::line("Fx", pts(&|r| r.fx_n), 1),
+            Series::line("Fy", pts(&|r| r.fy_n), 2),
+            Series::line("Tz", pts(&|r| r.tz_nmm), 3),
         ],
         bands: data
             .steps

@@ -14,6 +14,9 @@ use crate::protocol::compile::{ApproachSpec, DisturbSpec, SettleSpec, Step, Targ
 use crate::protocol::schema::{Channel, OnTimeout};
 use crate::record::StepRow;
 
+/// Squeeze above which a grip move ends still holding, N.
+const GRIPPING_N: f64 = 0.2;
+
 impl Exec<'_> {
     pub(super) async fn home(&mut self, axes: &[AxisRole]) -> Result<(), Stop> {
         self.what = format!(
@@ -138,6 +141,9 @@ impl Exec<'_> {
         self.origin.insert(axis, contact);
         self.targets.insert(axis, contact);
         let force = self.latest.map(|(_, w)| channel.of(&w)).unwrap_or(0.0);
+        if let Some(t) = self.tactile.as_mut() {
+            t.gripped();
+        }
         self.rec.update_manifest(|m| {
             m.origins.insert(axis.to_string(), contact);
         })?;
@@ -155,6 +161,48 @@ impl Exec<'_> {
             force.abs()
         ));
         Ok(())
+    }
+
+    /// A move's tactile condition was met: the axis stops where it is (journaled).
+    async fn tactile_stop(&mut self, axis: AxisRole, speed: f64) -> Result<(), Stop> {
+        self.slip_hit = false;
+        if let Some(ax) = self.rig.axes.get_mut(&axis) {
+            ax.stop().await?;
+        }
+        let deadline = self.deadline_for(axis, 0.0, speed, "stopping on slip".to_string());
+        self.wait(&mut Until::Motion(vec![deadline])).await?;
+        let here = self.position(axis).await?;
+        self.targets.insert(axis, here);
+        let state = self
+            .tactile
+            .as_ref()
+            .map(|t| t.state().as_str())
+            .unwrap_or("stick");
+        let t = self.now();
+        self.rec.journal(
+            t,
+            "tactile_stop",
+            json!({ "step": self.step, "axis": axis, "position": here, "state": state }),
+            true,
+        )?;
+        self.progress.note(&format!(
+            "{axis} stopped at {} on tactile {state}",
+            fmt_value((here * 1e6).round() / 1e6)
+        ));
+        Ok(())
+    }
+
+    /// After a grip move: still squeezing, the field now is the new pressing field (a
+    /// regrip); open, the grasp is over.
+    fn grip_changed(&mut self) {
+        let squeeze = self.latest.map(|(_, w)| w.fz_n.abs()).unwrap_or(0.0);
+        if let Some(t) = self.tactile.as_mut() {
+            if squeeze >= GRIPPING_N {
+                t.gripped();
+            } else {
+                t.released();
+            }
+        }
     }
 
     pub(super) async fn step(&mut self, s: &Step) -> Result<(), Stop> {
@@ -192,7 +240,17 @@ impl Exec<'_> {
                 Target::To(v) => origin + v,
                 Target::By(v) => self.position(axis).await? + v,
             };
-            self.move_axis(axis, abs, s.speed).await?;
+            self.slip_stop = s.until_slip.map(|l| l.state());
+            self.slip_hit = false;
+            let moved = self.move_axis(axis, abs, s.speed).await;
+            self.slip_stop = None;
+            moved?;
+            if self.slip_hit {
+                self.tactile_stop(axis, s.speed).await?;
+            }
+            if axis == AxisRole::Grip {
+                self.grip_changed();
+            }
         }
         if let Some(DisturbSpec {
             force_y_n,
@@ -341,10 +399,19 @@ impl Exec<'_> {
         let t = self.now();
         self.rec.journal(t, "step_end", json!(row), true)?;
         let summary = match mean {
-            Some(m) => format!(
-                "{}: Fz {:.3} N, Fx {:.3} N, Tz {:.3} N·mm; settled {:.0} s ({verdict})",
-                self.what, m.fz_n, m.fx_n, m.tz_nmm, settle_s
-            ),
+            Some(m) => {
+                // The tangential channel that carries something: Fx on the shear stage, Fy in
+                // a grasp (the lift's load).
+                let (name, t) = if m.fy_n.abs() > m.fx_n.abs() {
+                    ("Fy", m.fy_n)
+                } else {
+                    ("Fx", m.fx_n)
+                };
+                format!(
+                    "{}: Fz {:.3} N, {name} {:.3} N, Tz {:.3} N·mm; settled {:.0} s ({verdict})",
+                    self.what, m.fz_n, t, m.tz_nmm, settle_s
+                )
+            }
             None => format!("{}: settled {:.0} s ({verdict})", self.what, settle_s),
         };
         self.progress.step_done(s.step, &summary);

@@ -46,6 +46,14 @@ pub(super) struct Exec<'a> {
     pub(super) retracting: bool,
     pub(super) what: String,
     pub(super) phase: &'static str,
+    /// The live tactile path, while a record block captures frames.
+    pub(super) tactile: Option<super::tactile::LiveTactile>,
+    /// The camera's image scale, mm/px (for contact areas), when the protocol gives a view.
+    pub(super) mm_per_px: Option<f64>,
+    /// The running move stops when the tactile state reaches this.
+    pub(super) slip_stop: Option<analysis::tactile::SlipState>,
+    /// The tactile stop was reached during the current move.
+    pub(super) slip_hit: bool,
 }
 
 impl<'a> Exec<'a> {
@@ -97,6 +105,10 @@ impl<'a> Exec<'a> {
             retracting: false,
             what: String::new(),
             phase: "starting",
+            tactile: None,
+            mm_per_px: None,
+            slip_stop: None,
+            slip_hit: false,
         }
     }
 
@@ -217,6 +229,14 @@ impl<'a> Exec<'a> {
             .frames_hz
             .filter(|_| self.rig.camera.is_some())
             .map(|_| now);
+        // Continuous frames feed the live tactile path; a new block starts a new reference.
+        if self.next_frame_stream.is_some() {
+            if self.tactile.is_none() {
+                self.tactile = Some(super::tactile::LiveTactile::new(self.mm_per_px));
+            }
+        } else if self.tactile.take().is_some() {
+            self.progress.set_tactile(None);
+        }
     }
 
     /// How the plan ended: journals the stop and the watchdog's trip, if any.

@@ -24,6 +24,7 @@ mod exec;
 mod motion;
 mod retract;
 mod settle;
+mod tactile;
 mod wait;
 mod watchdog;
 
@@ -40,6 +41,15 @@ use crate::record::{DeviceRecord, Manifest, RecordError, Recorder, Status};
 
 pub use cancel::Cancel;
 use exec::Exec;
+
+/// The camera's image scale, mm/px: the sensor's view fitted into the frame (as `gelrig
+/// track` reads a run directory's scale).
+fn image_scale(loaded: &Loaded, rig: &Rig) -> Option<f64> {
+    let cam = rig.camera.as_ref()?.info();
+    let spec = plant_spec(&loaded.protocol, &loaded.compiled).ok()?;
+    let s = (spec.view_width_mm / cam.width as f64).max(spec.view_height_mm / cam.height as f64);
+    (s.is_finite() && s > 0.0).then_some(s)
+}
 use watchdog::{Limits, Monitor, TripKind, WatchConfig};
 
 /// What to run, where, and how.
@@ -215,6 +225,7 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
     let mut rig = rig;
     let monitor = start_watchdog(&mut rig, loaded, &clock, req.clock);
     let mut exec = Exec::new(rig, monitor, clock.clone(), rec, &progress, cancel, loaded);
+    exec.mm_per_px = image_scale(loaded, &exec.rig);
     let result = match opened {
         Ok(()) => exec.run_actions(&loaded.compiled.actions).await,
         Err(e) => Err(Stop::Record(e)),
@@ -316,6 +327,12 @@ fn finish(
     message: Option<String>,
 ) -> Result<RunOutcome, RecordError> {
     progress.finish();
+    // Frames still queued for the encoder are part of the run: a failure writing them
+    // fails it (the data is incomplete), whatever the plan's own outcome.
+    let (status, message) = match rec.flush_frames() {
+        Ok(()) => (status, message),
+        Err(e) => (Status::Failed, Some(format!("writing frames: {e}"))),
+    };
     let _ = rec.journal(
         clock.now_ns(),
         "run_end",

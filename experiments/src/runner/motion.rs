@@ -222,7 +222,52 @@ impl Exec<'_> {
             return Ok(());
         };
         let frame = cam.capture().await?;
-        self.rec.frame(&frame, self.step, self.trial)?;
+        let index = self.rec.frame(&frame, self.step, self.trial)?;
+        if self.tactile.is_some() {
+            let truth = match &self.monitor {
+                Some(m) => m.truth().await,
+                None => None,
+            };
+            self.tactile_frame(&frame, index.unwrap_or(0), truth.as_ref())?;
+        }
+        Ok(())
+    }
+
+    /// Judges a frame of a record block: `tactile.csv`, the progress line, the move's stop.
+    fn tactile_frame(
+        &mut self,
+        frame: &rig::Frame,
+        index: u64,
+        truth: Option<&rig::SimTruth>,
+    ) -> Result<(), Stop> {
+        let Some(live) = self.tactile.as_mut() else {
+            return Ok(());
+        };
+        let row = live.frame(frame, index, self.step, self.trial, truth);
+        let state = live.state();
+        if let Some(why) = live.new_failure() {
+            // The block's remaining frames are recorded untracked, not retried one by one.
+            let msg = format!("live tactile tracking stopped for this record block: {why}");
+            self.progress.note(&format!("warning: {msg}"));
+            self.rec.update_manifest(|m| m.warnings.push(msg))?;
+        }
+        if let Some(row) = row {
+            self.progress.set_tactile(Some(format!(
+                "slip: {}{}",
+                row.state,
+                if row.gripping {
+                    format!(" (stuck {:.0} %)", row.stuck_fraction * 100.0)
+                } else {
+                    String::new()
+                }
+            )));
+            self.rec.tactile(&row)?;
+        }
+        if let Some(level) = self.slip_stop
+            && state >= level
+        {
+            self.slip_hit = true;
+        }
         Ok(())
     }
 }

@@ -116,6 +116,9 @@ impl Exec<'_> {
                     deadline = *t;
                 }
                 Until::Motion(watch) => {
+                    if self.slip_hit {
+                        return Ok(());
+                    }
                     if now >= next_poll {
                         if self.arrived(watch, now).await? {
                             return Ok(());

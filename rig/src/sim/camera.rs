@@ -22,10 +22,12 @@ pub(crate) struct SimCamera {
     /// The camera's own copy of the contact model: fields are computed outside the plant's
     /// lock, so rendering never holds up the force sensor.
     model: ContactModel,
+    /// Mixed into the frame number for the sensor noise: each seed sees its own noise.
+    noise_key: u64,
 }
 
 impl SimCamera {
-    pub(crate) fn new(info: CameraInfo, plant: Arc<Mutex<Plant>>, clock: Clock) -> Self {
+    pub(crate) fn new(info: CameraInfo, plant: Arc<Mutex<Plant>>, clock: Clock, seed: u64) -> Self {
         let (renderer, model) = {
             let p = lock(&plant);
             (
@@ -42,6 +44,7 @@ impl SimCamera {
             last_t_ns: None,
             renderer,
             model,
+            noise_key: seed.wrapping_mul(0xD1B5_4A32_D192_ED03),
         }
     }
 }
@@ -69,7 +72,7 @@ impl Camera for SimCamera {
             rotation_rad: pose.rotation_rad,
         });
         let seq = t / self.period_ns;
-        let (rgb, truth) = self.renderer.render(surface.as_ref(), seq);
+        let (rgb, truth) = self.renderer.render(surface.as_ref(), seq ^ self.noise_key);
         Ok(Frame {
             t_ns: t,
             seq,

@@ -25,6 +25,7 @@ impl Compiler<'_> {
                         let home = 0.0_f64.max(axis.min).min(axis.max);
                         self.pos.insert(*role, (home, home));
                         self.origin.insert(*role, (0.0, 0.0));
+                        self.rel.remove(role);
                         self.approached.remove(role);
                     }
                     self.homed.insert(*role);
@@ -90,6 +91,7 @@ impl Compiler<'_> {
                 self.check_travel(a.axis, &axis, slo, shi + max_travel, &at.key("max_travel"));
                 self.origin.insert(a.axis, (slo, shi + max_travel));
                 self.pos.insert(a.axis, (slo, shi + max_travel));
+                self.rel.insert(a.axis, (0.0, 0.0));
                 self.approached.insert(a.axis);
                 self.push(
                     at,
@@ -158,6 +160,7 @@ impl Compiler<'_> {
                         force_window_s: window.min(h.duration.s().max(0.0)),
                         frames,
                         disturb: None,
+                        until_slip: None,
                     }),
                 );
             }
@@ -199,6 +202,7 @@ impl Compiler<'_> {
                         force_window_s: window.max(0.0),
                         frames: c.frames,
                         disturb: None,
+                        until_slip: None,
                     }),
                 );
             }
@@ -259,6 +263,7 @@ impl Compiler<'_> {
                             frequency_hz: d.frequency.hz(),
                             duration_s: d.duration.s().max(0.0),
                         }),
+                        until_slip: None,
                     }),
                 );
             }
@@ -428,6 +433,7 @@ impl Compiler<'_> {
                     force_window_s: window,
                     frames,
                     disturb: None,
+                    until_slip: None,
                 }),
             );
         }
@@ -438,6 +444,7 @@ impl Compiler<'_> {
             from
         };
         self.pos.insert(s.axis, (olo + last, ohi + last));
+        self.rel.insert(s.axis, (last, last));
     }
 
     pub(super) fn move_block(&mut self, m: &crate::protocol::schema::Move, at: &YamlPath) {
@@ -483,6 +490,7 @@ impl Compiler<'_> {
                 };
                 self.check_target(m.axis, &axis, v, &at.key("to"));
                 self.pos.insert(m.axis, (olo + v, ohi + v));
+                self.rel.insert(m.axis, (v, v));
                 Target::To(v)
             }
             (None, Some(q)) => {
@@ -490,24 +498,42 @@ impl Compiler<'_> {
                     return;
                 };
                 self.check_travel(m.axis, &axis, plo + v, phi + v, &at.key("by"));
+                let (rlo, rhi) = self
+                    .rel
+                    .get(&m.axis)
+                    .copied()
+                    .unwrap_or((plo - ohi, phi - olo));
                 if m.axis.presses()
                     && self.approached.contains(&m.axis)
-                    && phi + v - olo >= self.thickness_mm - EPS
+                    && rhi + v >= self.thickness_mm - EPS
                 {
                     self.error(
                         &at.key("by"),
                         format!(
                             "this move can take the depth to {} mm, reaching the elastomer thickness {} mm",
-                            fmt_value(phi + v - olo),
+                            fmt_value(rhi + v),
                             fmt_value(self.thickness_mm)
                         ),
                         "move by less",
                     );
                 }
                 self.pos.insert(m.axis, (plo + v, phi + v));
+                self.rel.insert(m.axis, (rlo + v, rhi + v));
                 Target::By(v)
             }
         };
+        let until_slip = m.until.as_ref().map(|u| {
+            let path = at.key("until").key("slip");
+            self.need_camera(&path, "stopping a move on the tactile slip state");
+            if !self.streams.iter().any(|r| r.frames_hz.is_some()) {
+                self.error(
+                    &path,
+                    "the tactile slip state comes from continuous frames, and this move records none",
+                    "put the move inside a `record:` block with `frames: 25 Hz` (the thesis's rate)",
+                );
+            }
+            u.slip
+        });
         let step = self.next_step();
         self.push(
             at,
@@ -523,6 +549,7 @@ impl Compiler<'_> {
                 force_window_s: window,
                 frames,
                 disturb: None,
+                until_slip,
             }),
         );
     }

@@ -12,7 +12,7 @@ use rig::units::{AxisQuantity, AxisSpeed, AxisUnit, fmt_value};
 use serde::Serialize;
 
 use crate::diag::Severity;
-use crate::protocol::schema::{Block, Channel, OnTimeout, Protocol, Streams};
+use crate::protocol::schema::{Block, Channel, OnTimeout, Protocol, SlipLevel, Streams};
 
 mod blocks;
 pub(crate) mod bounds;
@@ -247,6 +247,8 @@ pub struct Step {
     pub frames: u32,
     /// Disturbance applied at the start of the wait.
     pub disturb: Option<DisturbSpec>,
+    /// Stop the move as soon as the tactile slip state reaches this level.
+    pub until_slip: Option<SlipLevel>,
 }
 
 /// A disturbance.
@@ -341,6 +343,9 @@ struct Compiler<'a> {
     origin: BTreeMap<AxisRole, (f64, f64)>,
     /// Possible range of each axis position, absolute.
     pos: BTreeMap<AxisRole, (f64, f64)>,
+    /// Position relative to the axis origin (the depth of a pressing axis after an
+    /// approach): exact where `pos` and `origin` are uncertain together.
+    rel: BTreeMap<AxisRole, (f64, f64)>,
     /// Trials started so far.
     trials: u32,
     /// Trial the current block belongs to (0 outside `repeat`).
@@ -372,6 +377,7 @@ pub fn compile_with(p: &Protocol, rig: &RigConfig, budget: &Budget) -> Compiled 
         approached: BTreeSet::new(),
         origin: BTreeMap::new(),
         pos: BTreeMap::new(),
+        rel: BTreeMap::new(),
         trials: 0,
         trial: 0,
         streams: Vec::new(),

@@ -12,8 +12,8 @@
 //!   stick again when the stage stops (the stick-slip steps of thesis Fig. 4-16);
 //! - **sensor**: a per-seed offset, Gaussian noise at the Nano17's resolution, quantisation
 //!   and clipping with a status flag beyond its range;
-//! - **grasping**: a lifted object's weight passes to the grasp and slips out when μP
-//!   cannot hold it (thesis §6.3).
+//! - **grasping**: a can held between the gel and a sponge-backed Nano17, lifted off its
+//!   table, disturbed and let slip (thesis §6.3; [`super::grasp`]).
 
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -26,9 +26,11 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 
+use super::grasp::{Grasp, series_depth_mm};
 use crate::RigError;
 use crate::config::AxisRole;
 use crate::device::{ForceRange, STATUS_SATURATED, SimTruth, Wrench};
+use grasping::{GraspCurves, GraspReference};
 
 /// How markers are laid out on the elastomer (thesis §3.3 and §6.2).
 #[derive(Debug, Clone, PartialEq)]
@@ -179,9 +181,6 @@ const MAX_MOVING_STEP_NS: u64 = 5_000_000;
 const BASE_CONTACT_FRACTION: f64 = 0.95;
 /// Stiffness of the acrylic base once reached, N/mm: far beyond any sensor range.
 const BASE_STIFFNESS_N_PER_MM: f64 = 1e4;
-/// Lift over which the table's support of a grasped object hands over to the grasp, mm.
-const TABLE_HANDOVER_MM: f64 = 0.5;
-const GRAVITY_M_S2: f64 = 9.81;
 
 /// The contact's state and its placement in the camera view at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -208,8 +207,12 @@ pub(crate) struct Plant {
     twist: Option<Channel>,
     needs: PlantNeeds,
     in_contact: bool,
-    object_rest_lift_mm: Option<f64>,
-    object_slips: u32,
+    grasp: Option<Grasp>,
+    /// The gel's backbones in the grasp, at a quantised depth (key, shear, twist, stick
+    /// fractions along the shear backbone).
+    grasp_curves: Option<GraspCurves>,
+    /// The gel's backbones solved once for the grasp, scaled to each depth.
+    grasp_reference: Option<GraspReference>,
     disturbance: Option<Disturbance>,
     bias: Wrench,
     rng: StdRng,
@@ -223,6 +226,13 @@ impl Plant {
         seed: u64,
     ) -> Result<Self, RigError> {
         let terms: Vec<PronyTerm> = spec.contact.material.prony.clone();
+        // A grasp loads the gel along the lift and about its normal whatever stages exist.
+        let grasping = spec.object_mass_g.is_some();
+        let needs = PlantNeeds {
+            shear: needs.shear || grasping,
+            twist: needs.twist || grasping,
+            ..needs
+        };
         let prony = Prony::new(terms).map_err(|e| RigError::Plant(e.to_string()))?;
         let model = ContactModel::build(ModelSpec {
             contact: spec.contact.clone(),
@@ -246,7 +256,7 @@ impl Plant {
             ty_nmm: draw(5.0),
             tz_nmm: draw(5.0),
         };
-        Ok(Self {
+        let mut plant = Self {
             normal: prony.state(),
             prony,
             model,
@@ -258,12 +268,17 @@ impl Plant {
             shear: None,
             twist: None,
             in_contact: false,
-            object_rest_lift_mm: None,
-            object_slips: 0,
+            grasp: None,
+            grasp_curves: None,
+            grasp_reference: None,
             disturbance: None,
             bias,
             rng: StdRng::seed_from_u64(seed.wrapping_add(0x9E37_79B9_7F4A_7C15)),
-        })
+        };
+        if grasping {
+            plant.grasp_reference = Some(GraspReference::solve(&mut plant));
+        }
+        Ok(plant)
     }
 
     pub(crate) fn spec(&self) -> &PlantSpec {
@@ -421,6 +436,17 @@ impl Plant {
 
     fn depth_at(&self, t_ns: u64) -> f64 {
         match self.pressing_axis() {
+            Some((AxisRole::Grip, contact)) if self.spec.object_mass_g.is_some() => {
+                // The grip's closure is shared with the sponge behind the Nano17.
+                let closure = self
+                    .position(AxisRole::Grip, t_ns)
+                    .map(|p| p - contact)
+                    .unwrap_or(0.0);
+                let k = self.grasp_params().map(|g| g.sponge_normal_n_per_mm);
+                series_depth_mm(closure, k.unwrap_or(f64::INFINITY), |d| {
+                    self.elastic_normal_n(d)
+                })
+            }
             Some((role, contact)) => self
                 .position(role, t_ns)
                 .map(|p| p - contact)
@@ -454,6 +480,9 @@ impl Plant {
                 moving = true;
                 next = next.min(d.t1_ns);
             }
+            if self.grasp.as_ref().is_some_and(Grasp::active) {
+                moving = true;
+            }
             if moving {
                 next = next.min(self.t_ns + MAX_MOVING_STEP_NS);
             }
@@ -483,6 +512,7 @@ impl Plant {
     }
 
     fn integrate(&mut self, t1_ns: u64) {
+        let t0_ns = self.t_ns;
         let dt_s = (t1_ns - self.t_ns) as f64 * 1e-9;
         self.t_ns = t1_ns;
         let d = self.depth_at(t1_ns);
@@ -497,7 +527,10 @@ impl Plant {
             self.shear = None;
             self.twist = None;
             self.in_contact = false;
-            self.object_rest_lift_mm = None;
+            let lift = self.position(AxisRole::Lift, t1_ns).unwrap_or(0.0);
+            if let Some(g) = self.grasp.as_mut() {
+                g.release(lift);
+            }
             return;
         }
         if !self.in_contact {
@@ -554,40 +587,24 @@ impl Plant {
             };
             ch.state.cap_hereditary(limit);
         }
-        // A grasped object rests on the table until lifted; then each of the two fingers
-        // carries half its weight, up to the friction limit (thesis §6.3.1).
-        if let (Some(mass_g), Some(lift)) = (
-            self.spec.object_mass_g,
-            self.position(AxisRole::Lift, t1_ns),
-        ) {
-            let rest = *self.object_rest_lift_mm.get_or_insert(lift);
-            let share = ((lift - rest) / TABLE_HANDOVER_MM).clamp(0.0, 1.0);
-            let weight_n = mass_g * 1e-3 * GRAVITY_M_S2 / 2.0 * share;
-            if weight_n > mu * p {
-                // The object slides out of the grasp and falls back onto the table.
-                self.object_rest_lift_mm = Some(lift);
-                self.object_slips += 1;
-            }
-        }
-    }
-
-    /// Weight share carried by the grasp at the current time, N (0 without an object).
-    fn object_load_n(&self) -> f64 {
-        match (
-            self.spec.object_mass_g,
-            self.position(AxisRole::Lift, self.t_ns),
-            self.object_rest_lift_mm,
-        ) {
-            (Some(m), Some(lift), Some(rest)) if self.in_contact => {
-                m * 1e-3 * GRAVITY_M_S2 / 2.0 * ((lift - rest) / TABLE_HANDOVER_MM).clamp(0.0, 1.0)
-            }
-            _ => 0.0,
-        }
+        self.grasp_step(t0_ns, t1_ns, d_el, p, kinetic);
     }
 
     /// The true wrench at the plant's current time, before sensor effects.
     pub(crate) fn true_wrench(&self) -> Wrench {
-        let mut fy = self.object_load_n();
+        if self.grasp.is_some() {
+            // Behind the sponge, the Nano17 feels the squeeze and the sponge side's share.
+            let l = self.grasp_loads().unwrap_or_default();
+            return Wrench {
+                fx_n: 0.0,
+                fy_n: l.sponge_n,
+                fz_n: self.normal.value().max(0.0),
+                tx_nmm: 0.0,
+                ty_nmm: 0.0,
+                tz_nmm: l.sponge_nmm,
+            };
+        }
+        let mut fy = 0.0;
         let mut tz = self.twist.as_ref().map(|c| c.state.value()).unwrap_or(0.0);
         if let Some(d) = self.disturbance
             && self.t_ns >= d.t0_ns
@@ -639,7 +656,7 @@ impl Plant {
                     .as_ref()
                     .map(|c| c.element.force())
                     .unwrap_or(0.0),
-                fy_n: self.object_load_n(),
+                fy_n: self.grasp_loads().map(|l| l.sponge_n).unwrap_or(0.0),
                 fz_n: if d > 0.0 {
                     self.elastic_normal_n(d)
                 } else {
@@ -664,7 +681,8 @@ impl Plant {
             twist_sliding: self.twist.as_ref().is_some_and(|c| c.element.sliding()),
             shear_slips: self.shear.as_ref().map(|c| c.element.slips()).unwrap_or(0),
             twist_slips: self.twist.as_ref().map(|c| c.element.slips()).unwrap_or(0),
-            object_slips: self.object_slips,
+            object_slips: self.grasp.as_ref().map(|g| g.state().slips).unwrap_or(0),
+            grasp: self.grasp_truth(),
         }
     }
 
@@ -735,6 +753,21 @@ impl Plant {
             torque = c.element.force();
             slip_theta = (twist_pos - c.origin) - b.displacement_at(torque);
         }
+        if let Some(g) = self.grasp.as_ref().filter(|_| self.in_contact) {
+            // The can drags the gel's surface down (−x in the view: the lift axis is +x) and
+            // turns it with the torque the gel carries.
+            let l = g.loads();
+            let st = g.state();
+            return SurfacePose {
+                state: State {
+                    depth_mm: d.min(0.95 * h),
+                    shear_n: -l.gel_n,
+                    torque_nmm: l.gel_nmm,
+                },
+                centre_mm: (-st.slid_mm, 0.0),
+                rotation_rad: 0.0,
+            };
+        }
         // The sensor turns under a fixed indenter: relative to the gel the indenter turns
         // the other way, so the field's twist (and its slipped rotation) change sign.
         SurfacePose {
@@ -751,293 +784,10 @@ impl Plant {
     /// How many times a grasped object slipped out of the grasp (ground truth for tests).
     #[cfg(test)]
     pub(crate) fn object_slips(&self) -> u32 {
-        self.object_slips
+        self.grasp.as_ref().map(|g| g.state().slips).unwrap_or(0)
     }
 }
 
+mod grasping;
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use mechanics::{Indenter, Material};
-
-    fn plant(
-        indenter: Indenter,
-        prony: Vec<PronyTerm>,
-        mass: Option<f64>,
-        needs: PlantNeeds,
-    ) -> Plant {
-        let contact = Contact::new(
-            mechanics::geometry::presets::BOX_LAYER,
-            Material {
-                youngs_modulus_mpa: 0.25,
-                poisson_ratio: 0.49,
-                prony,
-                friction: 0.6,
-            },
-            indenter,
-        )
-        .expect("valid");
-        let spec = PlantSpec {
-            contact,
-            markers: MarkerLayout::Grid {
-                columns: 18,
-                rows: 16,
-                spacing_mm: 2.52,
-                diameter_mm: 1.4,
-            },
-            view_width_mm: 45.4,
-            view_height_mm: 40.3,
-            object_mass_g: mass,
-            max_depth_mm: 1.0,
-            kinetic_friction: 0.5,
-            quality: Quality::default(),
-        };
-        let geometry = BenchGeometry {
-            normal_contact_mm: 10.0,
-            grip_contact_mm: 10.0,
-            force_bias_n: 0.0,
-            noise: false,
-        };
-        Plant::new(spec, geometry, needs, 1).expect("plant")
-    }
-
-    const S: u64 = 1_000_000_000;
-
-    /// A followed stage counts as moving until it is reported stopped, or found again
-    /// where it was last reported.
-    #[test]
-    fn a_followed_stage_rests_when_reported_stopped() {
-        let flat = Indenter::FlatCircle { diameter_mm: 9.5 };
-        let n = AxisRole::Normal;
-        for stopped in [false, true] {
-            let mut p = plant(flat, vec![], None, PlantNeeds::default());
-            p.follow(&[(n, 9.0)], 0, false);
-            p.follow(&[(n, 10.2)], S, stopped);
-            assert_eq!(p.moving(n, S), !stopped, "stopped: {stopped}");
-            p.follow(&[(n, 10.2)], 2 * S, false);
-            assert!(!p.moving(n, 2 * S));
-        }
-    }
-
-    #[test]
-    fn step_relaxes_to_the_elastic_force() {
-        let prony = vec![PronyTerm {
-            weight: 0.5,
-            tau_s: 10.0,
-        }];
-        let mut p = plant(
-            Indenter::FlatCircle { diameter_mm: 9.5 },
-            prony,
-            None,
-            PlantNeeds::default(),
-        );
-        p.add_axis(AxisRole::Normal, 10.0);
-        p.start_move(AxisRole::Normal, 10.084, 1.0, 0, false);
-        p.advance_to(S / 10);
-        let peak = p.true_wrench().fz_n;
-        p.advance_to(600 * S);
-        let relaxed = p.true_wrench().fz_n;
-        let elastic = p.model.normal_force_n(0.084);
-        assert!(
-            (relaxed - elastic).abs() < 1e-9 * elastic,
-            "{relaxed} vs {elastic}"
-        );
-        assert!(peak > 1.4 * elastic && peak < 1.5 * elastic, "peak {peak}");
-    }
-
-    #[test]
-    fn shear_sticks_partially_slips_then_slides_with_a_drop() {
-        let needs = PlantNeeds {
-            shear: true,
-            ..PlantNeeds::default()
-        };
-        let mut p = plant(
-            Indenter::FlatCircle { diameter_mm: 12.68 },
-            vec![],
-            None,
-            needs,
-        );
-        p.add_axis(AxisRole::Normal, 10.0);
-        p.add_axis(AxisRole::Shear, 0.0);
-        p.start_move(AxisRole::Normal, 10.21, 1.0, 0, false);
-        p.advance_to(S);
-        let fz = p.true_wrench().fz_n;
-        let mut t = S;
-        let mut stick = Vec::new();
-        let mut slips = Vec::new();
-        let mut fx = Vec::new();
-        for k in 1..=24 {
-            p.start_move(AxisRole::Shear, 0.05 * k as f64, 0.1, t, false);
-            t += 2 * S;
-            p.advance_to(t);
-            fx.push(p.true_wrench().fx_n);
-            let truth = p.truth(t);
-            stick.push(truth.shear_stick_fraction.unwrap_or(-1.0));
-            slips.push(truth.shear_slips);
-        }
-        // Linear at first, partial slip (0 < stick < 1) before full slip, then the static
-        // limit μP is hit and the force drops to the kinetic limit.
-        assert!((fx[1] / fx[0] - 2.0).abs() < 0.05, "{fx:?}");
-        let first_slip = slips.iter().position(|n| *n > 0).expect("slips in the end");
-        assert!(
-            stick[..first_slip].iter().any(|s| *s > 0.05 && *s < 0.95),
-            "incipient before full slip: {stick:?}"
-        );
-        assert!(first_slip > 5, "{slips:?}");
-        let peak = fx.iter().cloned().fold(0.0, f64::max);
-        assert!(
-            peak <= 0.6 * fz * 1.03 && peak > 0.55 * fz,
-            "peak {peak} vs μP {}",
-            0.6 * fz
-        );
-        let last = *fx.last().unwrap_or(&0.0);
-        assert!(last < 0.95 * peak, "drop after slip: {last} vs {peak}");
-    }
-
-    #[test]
-    fn shear_far_beyond_the_slip_limit_slides_at_the_kinetic_force() {
-        let needs = PlantNeeds {
-            shear: true,
-            ..PlantNeeds::default()
-        };
-        let mut p = plant(
-            Indenter::FlatCircle { diameter_mm: 9.5 },
-            vec![],
-            None,
-            needs,
-        );
-        p.add_axis(AxisRole::Normal, 10.0);
-        p.add_axis(AxisRole::Shear, -12.0);
-        p.start_move(AxisRole::Normal, 10.2, 1.0, 0, false);
-        p.advance_to(S);
-        let fz = p.true_wrench().fz_n;
-        p.start_move(AxisRole::Shear, 12.0, 2.0, S, false);
-        let mut t = S;
-        while t < 12 * S {
-            t += S / 10;
-            let w = p.true_wrench();
-            assert!(w.fx_n.is_finite() && w.fx_n <= 0.6 * fz * 1.02, "{w:?}");
-            p.advance_to(t);
-        }
-        let fx = p.true_wrench().fx_n;
-        // Kinetic/static = 0.5/0.6 in this plant.
-        let kinetic = p
-            .model
-            .shear_curve(0.2)
-            .map(|(b, _)| b.limit() * 0.5 / 0.6)
-            .unwrap_or(0.0);
-        assert!((fx - kinetic).abs() < 1e-6 * kinetic, "{fx} vs {kinetic}");
-        assert!(p.truth(t).shear_slips >= 1);
-    }
-
-    #[test]
-    fn a_thousand_load_unload_steps_return_to_where_they_started() {
-        let prony = vec![
-            PronyTerm {
-                weight: 0.3,
-                tau_s: 0.5,
-            },
-            PronyTerm {
-                weight: 0.2,
-                tau_s: 20.0,
-            },
-        ];
-        let needs = PlantNeeds {
-            shear: true,
-            ..PlantNeeds::default()
-        };
-        let mut p = plant(
-            Indenter::FlatCircle { diameter_mm: 9.5 },
-            prony,
-            None,
-            needs,
-        );
-        p.add_axis(AxisRole::Normal, 10.0);
-        p.add_axis(AxisRole::Shear, 0.0);
-        p.start_move(AxisRole::Normal, 10.3, 1.0, 0, false);
-        let mut t = S;
-        p.advance_to(t);
-        // 500 cycles of ±0.05 mm on the normal axis and ±0.1 mm of shear.
-        let mut ends = Vec::new();
-        for k in 0..1000 {
-            let up = k % 2 == 0;
-            p.start_move(
-                AxisRole::Normal,
-                if up { 10.35 } else { 10.3 },
-                1.0,
-                t,
-                false,
-            );
-            p.start_move(AxisRole::Shear, if up { 0.1 } else { 0.0 }, 1.0, t, false);
-            t += S;
-            p.advance_to(t);
-            if !up {
-                ends.push(p.true_wrench());
-            }
-        }
-        // Once the slowest relaxation (20 s, ten cycles) has settled, the loop repeats
-        // itself: no drift in the normal force, and the Masing loop of the shear closes.
-        let (a, b) = (ends[250], ends[ends.len() - 1]);
-        assert!(
-            (a.fz_n - b.fz_n).abs() < 1e-3 * a.fz_n.abs(),
-            "{} vs {}",
-            a.fz_n,
-            b.fz_n
-        );
-        assert!(
-            (a.fx_n - b.fx_n).abs() < 1e-3 * (a.fx_n.abs() + 0.01),
-            "{} vs {}",
-            a.fx_n,
-            b.fx_n
-        );
-        // Resting long at the start position relaxes everything back to the elastic state.
-        t += 3600 * S;
-        p.advance_to(t);
-        let elastic = p.model.normal_force_n(0.3);
-        assert!((p.true_wrench().fz_n - elastic).abs() < 1e-6 * elastic);
-        assert!(p.true_wrench().fx_n.is_finite());
-    }
-
-    #[test]
-    fn lifted_object_hangs_until_the_grip_is_too_light() {
-        let mut p = plant(
-            Indenter::Cylinder {
-                diameter_mm: 57.2,
-                length_mm: 100.0,
-            },
-            vec![],
-            Some(100.0),
-            PlantNeeds::default(),
-        );
-        p.add_axis(AxisRole::Grip, 0.0);
-        p.add_axis(AxisRole::Lift, 0.0);
-        p.start_move(AxisRole::Grip, 10.2, 1.0, 0, false);
-        p.advance_to(20 * S);
-        p.start_move(AxisRole::Lift, 20.0, 10.0, 20 * S, false);
-        p.advance_to(30 * S);
-        let w = p.true_wrench();
-        assert!((w.fy_n - 0.1 * 9.81 / 2.0).abs() < 1e-9, "{w:?}");
-        assert_eq!(p.object_slips(), 0);
-        // Open the grip until friction cannot hold the can.
-        p.start_move(AxisRole::Grip, 10.0001, 1.0, 30 * S, false);
-        p.advance_to(40 * S);
-        assert!(p.object_slips() > 0);
-        assert!(p.true_wrench().fy_n < 0.1 * 9.81 / 2.0);
-    }
-
-    #[test]
-    fn pressing_on_the_base_saturates_the_sensor_instead_of_nan() {
-        let mut p = plant(
-            Indenter::FlatCircle { diameter_mm: 9.5 },
-            vec![],
-            None,
-            PlantNeeds::default(),
-        );
-        p.add_axis(AxisRole::Normal, 10.0);
-        p.start_move(AxisRole::Normal, 15.0, 1.0, 0, false);
-        let (w, status) = p.sense(10 * S, &ForceRange::NANO17);
-        assert!(w.fz_n.is_finite());
-        assert_eq!(w.fz_n, 70.0);
-        assert_ne!(status & STATUS_SATURATED, 0);
-    }
-}
+mod tests;

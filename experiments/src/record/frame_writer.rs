@@ -1,0 +1,232 @@
+//! Frames are encoded and written on their own thread, so the plan task (which renders on
+//! a dry run, tracks markers live and services the stages) and the encoder use both cores.
+//!
+//! Order and durability are the synchronous writer's: a frame's PNG is written under a
+//! temporary name and renamed when complete, then its row goes to `frames.csv` (and its
+//! true marker positions to `sim_markers.csv`), so a row never names a missing file. The
+//! queue is short (a few frames), so a slow disk holds the plan back rather than filling
+//! memory. The first failure stops the thread; the recorder reports it at the next frame or
+//! when the run ends ([`FrameWriter::finish`]).
+
+use std::path::PathBuf;
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+
+use image::ImageEncoder;
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use rig::Frame;
+
+use super::files::{CsvFile, write_new};
+use super::rows::{FrameRow, MarkerTruthRow, round6};
+use super::{RecordError, append_to};
+
+/// Frames queued before the plan waits for the encoder.
+const QUEUE: usize = 4;
+
+enum Job {
+    Frame(FrameJob),
+    /// Make everything written so far durable, then answer.
+    Sync(SyncSender<()>),
+}
+
+struct FrameJob {
+    n: u64,
+    frame: Frame,
+    step: u32,
+    trial: u32,
+}
+
+/// The encoding thread and its queue.
+pub(super) struct FrameWriter {
+    tx: Option<SyncSender<Job>>,
+    handle: Option<JoinHandle<()>>,
+    error: Arc<Mutex<Option<RecordError>>>,
+}
+
+impl FrameWriter {
+    /// Starts the thread writing into run directory `dir` (its `frames/` exists).
+    pub(super) fn start(dir: PathBuf) -> Result<Self, RecordError> {
+        let (tx, rx) = sync_channel::<Job>(QUEUE);
+        let error = Arc::new(Mutex::new(None));
+        let slot = Arc::clone(&error);
+        let frames = CsvFile::create(dir.join("frames.csv"))?;
+        let handle = std::thread::Builder::new()
+            .name("frame-writer".into())
+            .spawn(move || run(dir, frames, rx, slot))
+            .map_err(|e| RecordError::Io {
+                path: PathBuf::from("frames"),
+                source: e,
+            })?;
+        Ok(Self {
+            tx: Some(tx),
+            handle: Some(handle),
+            error,
+        })
+    }
+
+    /// Queues a frame; fails with the thread's first error, if it has stopped.
+    pub(super) fn send(
+        &mut self,
+        n: u64,
+        frame: &Frame,
+        step: u32,
+        trial: u32,
+    ) -> Result<(), RecordError> {
+        let job = Job::Frame(FrameJob {
+            n,
+            frame: frame.clone(),
+            step,
+            trial,
+        });
+        self.submit(job)
+    }
+
+    /// Waits until every frame queued so far is written and durable (a step's end).
+    pub(super) fn sync(&mut self) -> Result<(), RecordError> {
+        let (ack_tx, ack_rx) = sync_channel(1);
+        self.submit(Job::Sync(ack_tx))?;
+        match ack_rx.recv() {
+            Ok(()) => Ok(()),
+            Err(_) => Err(self.stopped()),
+        }
+    }
+
+    fn submit(&mut self, job: Job) -> Result<(), RecordError> {
+        if let Some(e) = self.take_error() {
+            return Err(e);
+        }
+        let sent = self.tx.as_ref().map(|tx| tx.send(job));
+        match sent {
+            Some(Ok(())) => Ok(()),
+            _ => Err(self.stopped()),
+        }
+    }
+
+    /// The thread is gone: its error says why.
+    fn stopped(&mut self) -> RecordError {
+        self.finish().err().unwrap_or_else(|| RecordError::Frame {
+            path: PathBuf::from("frames"),
+            detail: "the frame writer stopped".into(),
+        })
+    }
+
+    fn take_error(&self) -> Option<RecordError> {
+        self.error
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take()
+    }
+
+    /// Writes every queued frame and stops the thread; its first error, if any.
+    pub(super) fn finish(&mut self) -> Result<(), RecordError> {
+        self.tx = None;
+        if let Some(h) = self.handle.take()
+            && h.join().is_err()
+        {
+            return Err(RecordError::Frame {
+                path: PathBuf::from("frames"),
+                detail: "the frame writer panicked".into(),
+            });
+        }
+        match self.take_error() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for FrameWriter {
+    fn drop(&mut self) {
+        let _ = self.finish();
+    }
+}
+
+fn run(
+    dir: PathBuf,
+    mut frames: CsvFile,
+    rx: Receiver<Job>,
+    error: Arc<Mutex<Option<RecordError>>>,
+) {
+    let mut markers: Option<CsvFile> = None;
+    while let Ok(job) = rx.recv() {
+        let done = match job {
+            Job::Frame(f) => write(&dir, &mut frames, &mut markers, &f),
+            Job::Sync(ack) => {
+                let synced = [Some(&mut frames), markers.as_mut()]
+                    .into_iter()
+                    .flatten()
+                    .try_for_each(CsvFile::sync);
+                let _ = ack.send(());
+                synced
+            }
+        };
+        if let Err(e) = done {
+            *error.lock().unwrap_or_else(PoisonError::into_inner) = Some(e);
+            return;
+        }
+    }
+}
+
+fn write(
+    dir: &std::path::Path,
+    frames: &mut CsvFile,
+    markers: &mut Option<CsvFile>,
+    job: &FrameJob,
+) -> Result<(), RecordError> {
+    let FrameJob {
+        n,
+        frame,
+        step,
+        trial,
+    } = job;
+    let file = format!("frames/{n:06}.png");
+    let path = dir.join(&file);
+    let frame_err = |detail: String| RecordError::Frame {
+        path: path.clone(),
+        detail,
+    };
+    let expected = frame.width as usize * frame.height as usize * 3;
+    if frame.rgb.len() != expected {
+        return Err(frame_err(format!(
+            "{} bytes do not make a {}×{} RGB image",
+            frame.rgb.len(),
+            frame.width,
+            frame.height
+        )));
+    }
+    // Fast deflate with the Sub filter: a camera frame's sensor noise leaves little to
+    // compress; 1.0 ms a frame against 1.3 ms for the encoder's defaults and 85 ms for its
+    // `Default` level, for 1–4 % more bytes (BENCHMARKS.md, "Grasp trials").
+    let mut png = Vec::with_capacity(expected / 2);
+    PngEncoder::new_with_quality(&mut png, CompressionType::Fast, FilterType::Sub)
+        .write_image(
+            &frame.rgb,
+            frame.width,
+            frame.height,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| frame_err(e.to_string()))?;
+    write_new(&path, &png)?;
+    frames.row(&FrameRow {
+        frame: *n,
+        t_ns: frame.t_ns,
+        step: *step,
+        trial: *trial,
+        file: &file,
+        seq: frame.seq,
+    })?;
+    if let Some(truth) = &frame.truth_px {
+        let path = dir.join("sim_markers.csv");
+        for (id, [x, y]) in truth.iter().enumerate() {
+            let row = MarkerTruthRow {
+                frame: *n,
+                id,
+                x_px: round6(*x),
+                y_px: round6(*y),
+            };
+            append_to(markers, path.clone(), &row)?;
+        }
+    }
+    Ok(())
+}

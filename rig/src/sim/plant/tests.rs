@@ -1,0 +1,290 @@
+//! The plant's physics against what the thesis and the solvers say.
+use super::*;
+use mechanics::{Indenter, Material};
+
+fn plant(indenter: Indenter, prony: Vec<PronyTerm>, mass: Option<f64>, needs: PlantNeeds) -> Plant {
+    let contact = Contact::new(
+        mechanics::geometry::presets::BOX_LAYER,
+        Material {
+            youngs_modulus_mpa: 0.25,
+            poisson_ratio: 0.49,
+            prony,
+            friction: 0.6,
+        },
+        indenter,
+    )
+    .expect("valid");
+    let spec = PlantSpec {
+        contact,
+        markers: MarkerLayout::Grid {
+            columns: 18,
+            rows: 16,
+            spacing_mm: 2.52,
+            diameter_mm: 1.4,
+        },
+        view_width_mm: 45.4,
+        view_height_mm: 40.3,
+        object_mass_g: mass,
+        max_depth_mm: 1.0,
+        kinetic_friction: 0.5,
+        quality: Quality::default(),
+    };
+    let geometry = BenchGeometry {
+        normal_contact_mm: 10.0,
+        grip_contact_mm: 10.0,
+        force_bias_n: 0.0,
+        noise: false,
+    };
+    Plant::new(spec, geometry, needs, 1).expect("plant")
+}
+
+const S: u64 = 1_000_000_000;
+
+/// A followed stage counts as moving until it is reported stopped, or found again
+/// where it was last reported.
+#[test]
+fn a_followed_stage_rests_when_reported_stopped() {
+    let flat = Indenter::FlatCircle { diameter_mm: 9.5 };
+    let n = AxisRole::Normal;
+    for stopped in [false, true] {
+        let mut p = plant(flat, vec![], None, PlantNeeds::default());
+        p.follow(&[(n, 9.0)], 0, false);
+        p.follow(&[(n, 10.2)], S, stopped);
+        assert_eq!(p.moving(n, S), !stopped, "stopped: {stopped}");
+        p.follow(&[(n, 10.2)], 2 * S, false);
+        assert!(!p.moving(n, 2 * S));
+    }
+}
+
+#[test]
+fn step_relaxes_to_the_elastic_force() {
+    let prony = vec![PronyTerm {
+        weight: 0.5,
+        tau_s: 10.0,
+    }];
+    let mut p = plant(
+        Indenter::FlatCircle { diameter_mm: 9.5 },
+        prony,
+        None,
+        PlantNeeds::default(),
+    );
+    p.add_axis(AxisRole::Normal, 10.0);
+    p.start_move(AxisRole::Normal, 10.084, 1.0, 0, false);
+    p.advance_to(S / 10);
+    let peak = p.true_wrench().fz_n;
+    p.advance_to(600 * S);
+    let relaxed = p.true_wrench().fz_n;
+    let elastic = p.model.normal_force_n(0.084);
+    assert!(
+        (relaxed - elastic).abs() < 1e-9 * elastic,
+        "{relaxed} vs {elastic}"
+    );
+    assert!(peak > 1.4 * elastic && peak < 1.5 * elastic, "peak {peak}");
+}
+
+#[test]
+fn shear_sticks_partially_slips_then_slides_with_a_drop() {
+    let needs = PlantNeeds {
+        shear: true,
+        ..PlantNeeds::default()
+    };
+    let mut p = plant(
+        Indenter::FlatCircle { diameter_mm: 12.68 },
+        vec![],
+        None,
+        needs,
+    );
+    p.add_axis(AxisRole::Normal, 10.0);
+    p.add_axis(AxisRole::Shear, 0.0);
+    p.start_move(AxisRole::Normal, 10.21, 1.0, 0, false);
+    p.advance_to(S);
+    let fz = p.true_wrench().fz_n;
+    let mut t = S;
+    let mut stick = Vec::new();
+    let mut slips = Vec::new();
+    let mut fx = Vec::new();
+    for k in 1..=24 {
+        p.start_move(AxisRole::Shear, 0.05 * k as f64, 0.1, t, false);
+        t += 2 * S;
+        p.advance_to(t);
+        fx.push(p.true_wrench().fx_n);
+        let truth = p.truth(t);
+        stick.push(truth.shear_stick_fraction.unwrap_or(-1.0));
+        slips.push(truth.shear_slips);
+    }
+    // Linear at first, partial slip (0 < stick < 1) before full slip, then the static
+    // limit μP is hit and the force drops to the kinetic limit.
+    assert!((fx[1] / fx[0] - 2.0).abs() < 0.05, "{fx:?}");
+    let first_slip = slips.iter().position(|n| *n > 0).expect("slips in the end");
+    assert!(
+        stick[..first_slip].iter().any(|s| *s > 0.05 && *s < 0.95),
+        "incipient before full slip: {stick:?}"
+    );
+    assert!(first_slip > 5, "{slips:?}");
+    let peak = fx.iter().cloned().fold(0.0, f64::max);
+    assert!(
+        peak <= 0.6 * fz * 1.03 && peak > 0.55 * fz,
+        "peak {peak} vs μP {}",
+        0.6 * fz
+    );
+    let last = *fx.last().unwrap_or(&0.0);
+    assert!(last < 0.95 * peak, "drop after slip: {last} vs {peak}");
+}
+
+#[test]
+fn shear_far_beyond_the_slip_limit_slides_at_the_kinetic_force() {
+    let needs = PlantNeeds {
+        shear: true,
+        ..PlantNeeds::default()
+    };
+    let mut p = plant(
+        Indenter::FlatCircle { diameter_mm: 9.5 },
+        vec![],
+        None,
+        needs,
+    );
+    p.add_axis(AxisRole::Normal, 10.0);
+    p.add_axis(AxisRole::Shear, -12.0);
+    p.start_move(AxisRole::Normal, 10.2, 1.0, 0, false);
+    p.advance_to(S);
+    let fz = p.true_wrench().fz_n;
+    p.start_move(AxisRole::Shear, 12.0, 2.0, S, false);
+    let mut t = S;
+    while t < 12 * S {
+        t += S / 10;
+        let w = p.true_wrench();
+        assert!(w.fx_n.is_finite() && w.fx_n <= 0.6 * fz * 1.02, "{w:?}");
+        p.advance_to(t);
+    }
+    let fx = p.true_wrench().fx_n;
+    // Kinetic/static = 0.5/0.6 in this plant.
+    let kinetic = p
+        .model
+        .shear_curve(0.2)
+        .map(|(b, _)| b.limit() * 0.5 / 0.6)
+        .unwrap_or(0.0);
+    assert!((fx - kinetic).abs() < 1e-6 * kinetic, "{fx} vs {kinetic}");
+    assert!(p.truth(t).shear_slips >= 1);
+}
+
+#[test]
+fn a_thousand_load_unload_steps_return_to_where_they_started() {
+    let prony = vec![
+        PronyTerm {
+            weight: 0.3,
+            tau_s: 0.5,
+        },
+        PronyTerm {
+            weight: 0.2,
+            tau_s: 20.0,
+        },
+    ];
+    let needs = PlantNeeds {
+        shear: true,
+        ..PlantNeeds::default()
+    };
+    let mut p = plant(
+        Indenter::FlatCircle { diameter_mm: 9.5 },
+        prony,
+        None,
+        needs,
+    );
+    p.add_axis(AxisRole::Normal, 10.0);
+    p.add_axis(AxisRole::Shear, 0.0);
+    p.start_move(AxisRole::Normal, 10.3, 1.0, 0, false);
+    let mut t = S;
+    p.advance_to(t);
+    // 500 cycles of ±0.05 mm on the normal axis and ±0.1 mm of shear.
+    let mut ends = Vec::new();
+    for k in 0..1000 {
+        let up = k % 2 == 0;
+        p.start_move(
+            AxisRole::Normal,
+            if up { 10.35 } else { 10.3 },
+            1.0,
+            t,
+            false,
+        );
+        p.start_move(AxisRole::Shear, if up { 0.1 } else { 0.0 }, 1.0, t, false);
+        t += S;
+        p.advance_to(t);
+        if !up {
+            ends.push(p.true_wrench());
+        }
+    }
+    // Once the slowest relaxation (20 s, ten cycles) has settled, the loop repeats
+    // itself: no drift in the normal force, and the Masing loop of the shear closes.
+    let (a, b) = (ends[250], ends[ends.len() - 1]);
+    assert!(
+        (a.fz_n - b.fz_n).abs() < 1e-3 * a.fz_n.abs(),
+        "{} vs {}",
+        a.fz_n,
+        b.fz_n
+    );
+    assert!(
+        (a.fx_n - b.fx_n).abs() < 1e-3 * (a.fx_n.abs() + 0.01),
+        "{} vs {}",
+        a.fx_n,
+        b.fx_n
+    );
+    // Resting long at the start position relaxes everything back to the elastic state.
+    t += 3600 * S;
+    p.advance_to(t);
+    let elastic = p.model.normal_force_n(0.3);
+    assert!((p.true_wrench().fz_n - elastic).abs() < 1e-6 * elastic);
+    assert!(p.true_wrench().fx_n.is_finite());
+}
+
+/// The can between the gel and the sponge: the table carries it until the lift takes it;
+/// in the air the two sides share its weight (the Nano17 reads the sponge's share); an
+/// opening grip lets it slide and fall back onto the table (thesis §6.3).
+#[test]
+fn lifted_can_hangs_until_the_grip_is_too_light() {
+    let mut p = plant(
+        Indenter::Cylinder {
+            diameter_mm: 57.2,
+            length_mm: 100.0,
+        },
+        vec![],
+        Some(100.0),
+        PlantNeeds::default(),
+    );
+    p.add_axis(AxisRole::Grip, 0.0);
+    p.add_axis(AxisRole::Lift, 0.0);
+    // Close 2 mm past first touch: gel and sponge share it.
+    p.start_move(AxisRole::Grip, 12.0, 1.0, 0, false);
+    p.advance_to(20 * S);
+    let squeeze = p.true_wrench().fz_n;
+    assert!(squeeze > 1.0 && squeeze < 6.0, "squeeze {squeeze}");
+    let truth = p.truth(20 * S).grasp.expect("grasp truth");
+    assert!(truth.on_table && truth.height_mm == 0.0, "{truth:?}");
+    p.start_move(AxisRole::Lift, 20.0, 10.0, 20 * S, false);
+    p.advance_to(30 * S);
+    let w = p.true_wrench();
+    let truth = p.truth(30 * S).grasp.expect("grasp truth");
+    assert!(!truth.on_table && truth.height_mm > 19.0, "{truth:?}");
+    assert!(w.fy_n > 0.1 && w.fy_n < 0.9, "sponge share {w:?}");
+    assert_eq!(p.object_slips(), 0);
+    // Open the grip until friction cannot hold the can.
+    p.start_move(AxisRole::Grip, 10.01, 0.5, 30 * S, false);
+    p.advance_to(40 * S);
+    let truth = p.truth(40 * S).grasp.expect("grasp truth");
+    assert!(p.object_slips() > 0, "{truth:?}");
+    assert!(truth.on_table, "{truth:?}");
+}
+
+#[test]
+fn pressing_on_the_base_saturates_the_sensor_instead_of_nan() {
+    let mut p = plant(
+        Indenter::FlatCircle { diameter_mm: 9.5 },
+        vec![],
+        None,
+        PlantNeeds::default(),
+    );
+    p.add_axis(AxisRole::Normal, 10.0);
+    p.start_move(AxisRole::Normal, 15.0, 1.0, 0, false);
+    let (w, status) = p.sense(10 * S, &ForceRange::NANO17);
+    assert!(w.fz_n.is_finite());
+    assert_eq!(w.fz_n, 70.0);
+    assert_ne!(status & STATUS_SATURATED, 0);
+}

@@ -281,9 +281,19 @@ impl TactileMonitor {
             .collect();
         let centre = mean(&pts);
         // The part that moves most moves with the object: fit there, then judge everyone.
-        let dir = mean(&shear);
+        // "Most" along the load once the contact's overall rotation is taken out, so a twist
+        // does not pick one side of the contact.
+        let everyone: Vec<usize> = (0..shear.len()).collect();
+        let (_, theta0) = rigid_fit(&pts, &shear, centre, &everyone);
+        let untwisted: Vec<[f64; 2]> = (0..shear.len())
+            .map(|k| {
+                let r = [pts[k][0] - centre[0], pts[k][1] - centre[1]];
+                [shear[k][0] + theta0 * r[1], shear[k][1] - theta0 * r[0]]
+            })
+            .collect();
+        let dir = mean(&untwisted);
         let norm = dir[0].hypot(dir[1]);
-        let mut order: Vec<usize> = (0..shear.len()).collect();
+        let mut order = everyone;
         let along = |w: [f64; 2]| {
             if norm > 0.0 {
                 (w[0] * dir[0] + w[1] * dir[1]) / norm
@@ -291,7 +301,7 @@ impl TactileMonitor {
                 w[0].hypot(w[1])
             }
         };
-        order.sort_by(|&a, &b| along(shear[b]).total_cmp(&along(shear[a])));
+        order.sort_by(|&a, &b| along(untwisted[b]).total_cmp(&along(untwisted[a])));
         let top: Vec<usize> = order[..shear.len().div_ceil(2)].to_vec();
         let (mut t, mut theta) = rigid_fit(&pts, &shear, centre, &top);
         // A marker follows the object if it is where the rigid motion puts it, within a

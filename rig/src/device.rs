@@ -273,8 +273,17 @@ pub struct GraspTruth {
     pub slid_mm: f64,
     /// The can's rotation in the grasp, degrees.
     pub angle_deg: f64,
-    /// Fraction of the gel's contact that sticks (1 at rest, 0 in gross slip).
+    /// Fraction of the gel's contact that sticks under the load along the lift (1 at rest,
+    /// 0 in gross slip).
     pub gel_stick_fraction: f64,
+    /// Fraction that sticks under the torque about the normal alone. Under both loads the
+    /// stuck area is at most the smaller of the two.
+    pub gel_twist_stick_fraction: f64,
+    /// The gel side's friction margin along the lift, 1 − |Q| / Q_max (Q_max: its full-slip
+    /// force at the present squeeze); 1 when it carries nothing.
+    pub gel_margin: f64,
+    /// The gel side's torsional margin, 1 − |M| / M_max.
+    pub gel_twist_margin: f64,
     /// Gross slip on the gel side now.
     pub sliding: bool,
     /// The can turns in the grasp now (the gel's twist in full slip).

@@ -190,8 +190,14 @@ pub struct TactileRow {
     pub area_ratio: f64,
     /// Tracking and judging this frame took, ms.
     pub ms: f64,
-    /// Simulated: fraction of the gel's contact that sticks.
+    /// Simulated: fraction of the gel's contact that sticks under the load along the lift.
     pub true_stick_fraction: Option<f64>,
+    /// Simulated: fraction that sticks under the torque about the normal.
+    pub true_twist_stick_fraction: Option<f64>,
+    /// Simulated: the gel side's friction margin along the lift, 1 − |Q| / Q_max.
+    pub true_margin: Option<f64>,
+    /// Simulated: the gel side's torsional margin, 1 − |M| / M_max.
+    pub true_twist_margin: Option<f64>,
     /// Simulated: the object's velocity relative to the pads, mm/s.
     pub true_slip_mm_s: Option<f64>,
     /// Simulated: the object's height above the table, mm.

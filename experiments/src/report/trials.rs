@@ -61,6 +61,8 @@ pub(crate) struct TrialResult {
     pub lead_s: Option<f64>,
     pub outcome: &'static str,
     pub false_alarm_frames: usize,
+    /// Largest |Tz| the Nano17 read in the trial's disturbances, N·mm.
+    pub peak_twist_nmm: Option<f64>,
     pub carrying_s: (f64, f64),
 }
 
@@ -107,6 +109,11 @@ pub(crate) fn analyse(data: &RunData, tactile: &[TactileCsvRow]) -> Vec<TrialRes
             .map(|s| s.step)
             .collect();
         let onset = force_onset(&carrying, load, &disturbing);
+        let peak_twist_nmm = carrying
+            .iter()
+            .filter(|r| disturbing.contains(&r.step))
+            .map(|r| r.tz_nmm.abs())
+            .reduce(f64::max);
         let force_onset_ns = onset.map(|k| carrying[k].t_ns);
         let mu_hat = onset
             .map(|k| carrying[k].fz_n)
@@ -156,6 +163,7 @@ pub(crate) fn analyse(data: &RunData, tactile: &[TactileCsvRow]) -> Vec<TrialRes
                 _ => None,
             },
             outcome,
+            peak_twist_nmm,
             false_alarm_frames: if outcome == "held" {
                 frames
                     .iter()
@@ -244,13 +252,15 @@ pub(super) fn section(
         "| trial | squeeze (N) | lift load (N) | μ̂ | slip margin (%) | tactile onset (s) | force onset (s) |",
     );
     text.push_str(if truth { " true onset (s) |" } else { "" });
-    text.push_str(" lead (s) | outcome | false alarms (frames) |\n|---|---|---|---|---|---|---|");
+    text.push_str(
+        " lead (s) | outcome | peak twist Tz (N·mm) | false alarms (frames) |\n|---|---|---|---|---|---|---|",
+    );
     text.push_str(if truth { "---|" } else { "" });
-    text.push_str("---|---|---|\n");
+    text.push_str("---|---|---|---|\n");
     let mut rows = Vec::new();
     for t in results {
         text.push_str(&format!(
-            "| {} | {:.3} | {:.3} | {} | {} | {} | {} |{} {} | {} | {} |\n",
+            "| {} | {:.3} | {:.3} | {} | {} | {} | {} |{} {} | {} | {} | {} |\n",
             t.trial,
             t.squeeze_n,
             t.lift_load_n,
@@ -265,6 +275,7 @@ pub(super) fn section(
             },
             opt(t.lead_s, 2),
             t.outcome,
+            opt(t.peak_twist_nmm, 1),
             t.false_alarm_frames
         ));
         rows.push(json!({
@@ -272,7 +283,7 @@ pub(super) fn section(
             "mu_hat": t.mu_hat, "slip_margin": t.margin,
             "tactile_onset_s": t.tactile_onset_s, "force_onset_s": t.force_onset_s,
             "true_onset_s": t.true_onset_s, "lead_s": t.lead_s, "outcome": t.outcome,
-            "false_alarm_frames": t.false_alarm_frames,
+            "false_alarm_frames": t.false_alarm_frames, "peak_twist_nmm": t.peak_twist_nmm,
         }));
     }
     let count = |o: &str| results.iter().filter(|t| t.outcome == o).count();
@@ -287,7 +298,9 @@ pub(super) fn section(
     text.push_str(&format!(
         "\n{} trials: {} held, {} slipped, {} dropped. The tactile warning came before the \
          can went in {} of {} trials that slipped (median lead {} s); {} false-alarm frames \
-         in trials that held.\n",
+         in trials that held. The slip margin is along the load only: a twist carried \
+         near the contact's torsional capacity slips at the contact's ends too, and the \
+         markers report it (see the peak twist).\n",
         results.len(),
         count("held"),
         count("slipped"),

@@ -105,6 +105,11 @@ pub(crate) struct GraspLoads {
     pub gel_nmm: f64,
     /// Torque the sponge carries, N·mm (the Nano17's Tz).
     pub sponge_nmm: f64,
+    /// The gel's friction capacity along the lift at the present squeeze (its backbone's
+    /// full-slip force), N; 0 when the gel does not touch.
+    pub gel_capacity_n: f64,
+    /// The gel's torsional capacity about its normal at the present squeeze, N·mm.
+    pub gel_capacity_nmm: f64,
 }
 
 /// Ground truth of the grasp at one instant.
@@ -209,6 +214,11 @@ impl Grasp {
     /// The gel's tangential element (for its stick fraction).
     pub(crate) fn gel_element(&self) -> &FrictionElement {
         &self.gel
+    }
+
+    /// The gel's torsional element (for its stick fraction under a twist).
+    pub(crate) fn gel_twist_element(&self) -> &FrictionElement {
+        &self.gel_twist
     }
 
     /// Integrates `dt_s` with the pads moving linearly from the last lift position to
@@ -324,11 +334,20 @@ impl Grasp {
                 self.state.slips += 1;
             }
             self.state.slip_mm_s = self.v_mm_s - pad_v;
+            let on = n > 0.0;
             self.loads = GraspLoads {
                 gel_n: f_gel,
                 sponge_n: f_sponge + damping,
                 gel_nmm: t_gel,
                 sponge_nmm: t_sponge + t_damp,
+                gel_capacity_n: gel
+                    .shear
+                    .filter(|_| on)
+                    .map_or(0.0, |b| b.limit() * gel.scale),
+                gel_capacity_nmm: gel
+                    .twist
+                    .filter(|_| on)
+                    .map_or(0.0, |b| b.limit() * gel.scale),
             };
         }
         let s = (lift_mm - self.lift_origin_mm) - self.z_mm;

@@ -4,7 +4,7 @@
 
 use std::f64::consts::PI;
 
-use mechanics::friction::Backbone;
+use mechanics::friction::{Backbone, FrictionElement};
 
 use super::Plant;
 use crate::config::AxisRole;
@@ -19,6 +19,7 @@ pub(super) struct GraspCurves {
     shear: Option<Backbone>,
     stick: Vec<f64>,
     twist: Option<Backbone>,
+    twist_stick: Vec<f64>,
 }
 
 /// Depth steps the grasp's backbones are scaled to: 1/200 of the thickness (10 µm on the
@@ -44,7 +45,7 @@ pub(super) struct GraspReference {
     p_n: f64,
     a_mm: f64,
     shear: Option<(Backbone, Vec<f64>)>,
-    twist: Option<Backbone>,
+    twist: Option<(Backbone, Vec<f64>)>,
 }
 
 impl GraspReference {
@@ -56,7 +57,7 @@ impl GraspReference {
             p_n: plant.elastic_normal_n(d),
             a_mm: plant.model.contact_radius_mm(d),
             shear: plant.model.shear_curve(d),
-            twist: plant.model.twist_curve(d).map(|(b, _)| b),
+            twist: plant.model.twist_curve(d),
         }
     }
 }
@@ -104,7 +105,8 @@ impl Plant {
                 elastic_n,
                 stick: r.shear.as_ref().map(|(_, s)| s.clone()).unwrap_or_default(),
                 shear: r.shear.as_ref().map(|(b, _)| scaled(b, sx, sf)),
-                twist: r.twist.as_ref().map(|b| scaled(b, sx, sf)),
+                twist: r.twist.as_ref().map(|(b, _)| scaled(b, sx, sf)),
+                twist_stick: r.twist.as_ref().map(|(_, s)| s.clone()).unwrap_or_default(),
             });
         }
         let Some(c) = self.grasp_curves.as_ref() else {
@@ -145,24 +147,54 @@ impl Plant {
             .map(Grasp::loads)
     }
 
-    /// Ground truth of the grasp: the can's motion and the gel's stick fraction.
+    /// Ground truth of the grasp: the can's motion, and the gel's stick fractions and friction
+    /// margins along the lift and about its normal.
     pub(super) fn grasp_truth(&self) -> Option<GraspTruth> {
         let g = self.grasp.as_ref()?;
         let s = g.state();
-        let stick = self.grasp_curves.as_ref().and_then(|c| {
-            let b = c.shear.as_ref()?;
-            let e = g.gel_element();
-            if e.sliding() || s.on_table && g.loads().gel_n == 0.0 {
-                return Some(if e.sliding() { 0.0 } else { 1.0 });
+        let l = g.loads();
+        let c = self.grasp_curves.as_ref();
+        // Stick fraction of one of the gel's friction elements: the backbone is solved at the
+        // depth's elastic force; the element's force is at the present (relaxed) squeeze, so
+        // it is brought back by the capacity ratio before reading the backbone (stick fraction
+        // against Q/μP does not depend on the squeeze: Cattaneo–Mindlin similarity).
+        let stick = |b: Option<&Backbone>, fr: &[f64], e: &FrictionElement, cap: f64| {
+            let Some(b) = b else { return 1.0 };
+            if e.sliding() {
+                return 0.0;
             }
-            Some(stick_at(b, &c.stick, b.displacement_at(e.force())))
-        });
+            if cap <= 0.0 || e.force() == 0.0 {
+                return 1.0;
+            }
+            let scale = cap / b.limit();
+            stick_at(b, fr, b.displacement_at(e.force() / scale))
+        };
+        let margin = |load: f64, cap: f64| {
+            if cap > 0.0 {
+                1.0 - load.abs() / cap
+            } else {
+                1.0
+            }
+        };
         Some(GraspTruth {
             height_mm: s.height_mm,
             slip_mm_s: s.slip_mm_s,
             slid_mm: s.slid_mm,
             angle_deg: s.angle_rad.to_degrees(),
-            gel_stick_fraction: stick.unwrap_or(1.0),
+            gel_stick_fraction: stick(
+                c.and_then(|c| c.shear.as_ref()),
+                c.map_or(&[][..], |c| &c.stick),
+                g.gel_element(),
+                l.gel_capacity_n,
+            ),
+            gel_twist_stick_fraction: stick(
+                c.and_then(|c| c.twist.as_ref()),
+                c.map_or(&[][..], |c| &c.twist_stick),
+                g.gel_twist_element(),
+                l.gel_capacity_nmm,
+            ),
+            gel_margin: margin(l.gel_n, l.gel_capacity_n),
+            gel_twist_margin: margin(l.gel_nmm, l.gel_capacity_nmm),
             sliding: s.gel_sliding,
             rotating: s.twist_sliding,
             on_table: s.on_table,

@@ -23,6 +23,7 @@
 
 pub mod field;
 pub mod field_force;
+pub mod force_sensor;
 pub mod hysteresis;
 pub mod linearity;
 pub mod relaxation;

@@ -13,11 +13,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use experiments::plan::plan;
-use experiments::progress::ProgressMode;
 use experiments::protocol::load;
-use experiments::runner::{Cancel, RunRequest, run};
-use rig::ClockMode;
+use experiments::runner::run_virtual_blocking;
 
 type Row = std::collections::BTreeMap<String, String>;
 
@@ -41,26 +38,8 @@ fn dry_run(tmp: &Path, text: &str, rig: &Path, seed: u64) -> (std::path::PathBuf
                 .join("\n")
         ),
     };
-    let plan = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .start_paused(true)
-        .build()
-        .expect("runtime");
     let started = Instant::now();
-    let outcome = rt
-        .block_on(run(
-            RunRequest {
-                loaded: &loaded,
-                plan: &plan,
-                out: tmp.to_path_buf(),
-                seed,
-                clock: ClockMode::Virtual,
-                progress: ProgressMode::Quiet,
-            },
-            Cancel::new(),
-        ))
-        .expect("run");
+    let outcome = run_virtual_blocking(&loaded, tmp, seed).expect("run");
     (outcome.dir, started.elapsed().as_secs_f64())
 }
 

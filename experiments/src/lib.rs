@@ -18,6 +18,7 @@ pub mod record;
 pub mod report;
 pub mod runner;
 pub mod runs;
+pub mod sensor;
 pub mod track;
 
 pub use diag::{Diagnostic, Severity};

@@ -6,6 +6,7 @@
 
 mod dry_run;
 mod faults;
+mod force_sensing;
 mod fuzz;
 mod grasp;
 mod hostile;

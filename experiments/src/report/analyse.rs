@@ -343,11 +343,15 @@ fn sim_truth(data: &RunData, b: &Block, step: u32) -> Option<f64> {
 }
 
 /// The interior marker field of a frame.
-pub(super) fn frame_field(data: &RunData, frame: u64) -> Option<MarkerField> {
-    let rows = data.markers.get(&frame)?;
+pub(crate) fn frame_field(data: &RunData, frame: u64) -> Option<MarkerField> {
+    Some(field_of_rows(data.markers.get(&frame)?))
+}
+
+/// The marker field of one frame's rows of `markers.csv`, by marker identity.
+pub(crate) fn field_of_rows(rows: &[super::MarkerRow]) -> MarkerField {
     let mut sorted: Vec<&super::MarkerRow> = rows.iter().collect();
     sorted.sort_by_key(|m| m.id);
-    Some(MarkerField {
+    MarkerField {
         reference_px: sorted
             .iter()
             .map(|m| [m.x_px - m.dx_px, m.y_px - m.dy_px])
@@ -357,7 +361,7 @@ pub(super) fn frame_field(data: &RunData, frame: u64) -> Option<MarkerField> {
             .iter()
             .map(|m| m.state == "tracked" || m.state == "merged")
             .collect(),
-    })
+    }
 }
 
 /// The field at the end of step `step` (its last frame).

@@ -7,8 +7,9 @@
 //! `report/summary.json`. Sections appear only where they apply: a run without frames has
 //! no field sections, a run that never unloads no hysteresis, a normal-only run no slip.
 
-mod analyse;
+pub(crate) mod analyse;
 mod contact;
+mod gelsight_force;
 pub mod plots;
 mod snapshots;
 mod trials;
@@ -42,6 +43,14 @@ pub enum ReportError {
         /// 1-based data row.
         row: usize,
         /// The parse error.
+        detail: String,
+    },
+    /// The GelSight's force could not be read with the sensor file given.
+    #[error("reading force from the field with {sensor}: {detail}")]
+    Sensor {
+        /// The sensor file.
+        sensor: PathBuf,
+        /// Why (names the fix).
         detail: String,
     },
     /// Writing the report failed.
@@ -109,6 +118,8 @@ pub(crate) struct SimRow {
 #[derive(Debug, Clone, Deserialize)]
 pub(crate) struct FrameRow {
     pub frame: u64,
+    #[serde(default)]
+    pub t_ns: u64,
     pub step: u32,
 }
 
@@ -154,7 +165,7 @@ impl RunData {
     }
 }
 
-fn read_csv<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<Vec<T>, ReportError> {
+pub(crate) fn read_csv<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<Vec<T>, ReportError> {
     let mut r = csv::Reader::from_path(path).map_err(|e| ReportError::Missing {
         path: path.to_path_buf(),
         detail: e.to_string(),
@@ -254,11 +265,45 @@ pub struct Written {
 
 /// Makes the report of `run_dir` into `run_dir/report/` (or `out`).
 pub fn report(run_dir: &Path, out: Option<&Path>) -> Result<Written, ReportError> {
+    report_with_sensor(run_dir, out, None)
+}
+
+/// [`report`], with a section "GelSight force against the force sensor" when a calibrated
+/// sensor file (and its path, for the text) is given.
+pub fn report_with_sensor(
+    run_dir: &Path,
+    out: Option<&Path>,
+    sensor: Option<(&crate::sensor::SensorFile, &Path)>,
+) -> Result<Written, ReportError> {
     let data = read_run(run_dir)?;
+    let gelsight =
+        match sensor {
+            Some((file, path)) => {
+                let frames = crate::sensor::run_frames(&data);
+                let rows = crate::sensor::wrench::wrench_of_frames(file, &frames, run_dir)
+                    .map_err(|e| ReportError::Sensor {
+                        sensor: path.to_path_buf(),
+                        detail: e.to_string(),
+                    })?;
+                let name = path
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                Some((file, name, rows))
+            }
+            None => None,
+        };
     let model = analyse::reference_model(&data);
     let report = analyse::analyse(&data, model);
     let dir = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| run_dir.join("report"));
-    write::write(&data, &report, &dir)
+    write::write(
+        &data,
+        &report,
+        &dir,
+        gelsight
+            .as_ref()
+            .map(|(f, n, r)| (*f, n.as_str(), r.as_slice())),
+    )
 }

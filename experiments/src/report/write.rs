@@ -59,7 +59,16 @@ fn num(v: f64) -> Value {
     if v.is_finite() { json!(v) } else { Value::Null }
 }
 
-pub(super) fn write(data: &RunData, r: &Report, dir: &Path) -> Result<Written, ReportError> {
+pub(super) fn write(
+    data: &RunData,
+    r: &Report,
+    dir: &Path,
+    gelsight: Option<(
+        &crate::sensor::SensorFile,
+        &str,
+        &[crate::sensor::WrenchRow],
+    )>,
+) -> Result<Written, ReportError> {
     fs::create_dir_all(dir).map_err(|e| werr(dir)(e.to_string()))?;
     let mut out = Out {
         dir: dir.to_path_buf(),
@@ -126,6 +135,16 @@ pub(super) fn write(data: &RunData, r: &Report, dir: &Path) -> Result<Written, R
         out.sections.push(Section { title, text, plots });
         summary["trials"] = json["trials"].clone();
         summary["trial_stats"] = json["trial_stats"].clone();
+    }
+    if let Some((title, text, json, charts)) =
+        gelsight.and_then(|(f, name, rows)| super::gelsight_force::section(data, f, name, rows))
+    {
+        let mut plots = Vec::new();
+        for (name, chart) in &charts {
+            plots.push(out.plot(name, chart)?);
+        }
+        out.sections.push(Section { title, text, plots });
+        summary["gelsight_force"] = json;
     }
     if let Some(note) = &r.model_note {
         summary["notes"] = json!([note]);

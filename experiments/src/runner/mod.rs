@@ -137,6 +137,36 @@ pub(crate) fn period_ns(hz: f64) -> u64 {
     (1e9 / hz).round().max(1.0) as u64
 }
 
+/// Dry-runs `loaded` on its simulated rig in virtual time with `seed` into a new run
+/// directory under `out`, quietly, on a runtime of its own (for studies and scripts; the
+/// `gelrig run` command does the same with progress and signals).
+pub fn run_virtual_blocking(
+    loaded: &crate::protocol::Loaded,
+    out: &std::path::Path,
+    seed: u64,
+) -> Result<RunOutcome, RecordError> {
+    let plan = crate::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .start_paused(true)
+        .build()
+        .map_err(|source| RecordError::Io {
+            path: out.to_path_buf(),
+            source,
+        })?;
+    rt.block_on(run(
+        RunRequest {
+            loaded,
+            plan: &plan,
+            out: out.to_path_buf(),
+            seed,
+            clock: ClockMode::Virtual,
+            progress: crate::progress::ProgressMode::Quiet,
+        },
+        Cancel::new(),
+    ))
+}
+
 /// Runs `req`; returns how it ended. Fails only if the run directory cannot be created.
 pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, RecordError> {
     let loaded = req.loaded;

@@ -190,7 +190,7 @@ pub(super) fn sim_truth(input: &Input) -> Option<HashMap<u64, Vec<[f64; 2]>>> {
 /// A run directory's image scale, mm per px: its sensor's view over the frame size (the
 /// larger of the two ratios, as the camera fits the view into the frame). `None` when the
 /// run's protocol does not load.
-pub(super) fn run_scale(dir: &Path, width: usize, height: usize) -> Option<f64> {
+pub(crate) fn run_scale(dir: &Path, width: usize, height: usize) -> Option<f64> {
     let loaded =
         crate::protocol::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml"))).ok()?;
     let spec = crate::protocol::plant_spec(&loaded.protocol, &loaded.compiled).ok()?;

@@ -27,7 +27,8 @@ use analysis::tracking::{ContactParams, ContactRegion};
 use decode::DecodeAhead;
 use field_out::FieldWriter;
 pub use input::load_rgb;
-use input::{frame_list, run_scale, sim_truth};
+pub(crate) use input::run_scale;
+use input::{frame_list, sim_truth};
 
 /// What to track.
 #[derive(Debug, Clone, PartialEq)]

@@ -59,6 +59,8 @@ enum Command {
     Track(cmd::track::Cmd),
     /// Analyse a run: relaxation, linearity, hysteresis, slip, force from field; report.html.
     Report(cmd::report::Cmd),
+    /// Calibrate the GelSight as a force sensor on runs with frames and force: SENSOR.yaml.
+    Calibrate(cmd::calibrate::Cmd),
     /// Check that every device of a rig file answers (identity, calibration, position).
     Probe(cmd::probe::Cmd),
     /// Simulated devices on real transports: `gelrig sim serve --rig R.yaml`.
@@ -75,6 +77,7 @@ fn main() -> ExitCode {
         Command::Schema(c) => c.run(),
         Command::Track(c) => c.run(),
         Command::Report(c) => c.run(),
+        Command::Calibrate(c) => c.run(),
         Command::Probe(c) => c.run(),
         Command::Sim(c) => c.run(),
     };

@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub(crate) mod calibrate;
 pub(crate) mod plan;
 pub(crate) mod probe;
 pub(crate) mod report;

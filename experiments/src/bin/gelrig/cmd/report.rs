@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use experiments::report::{ReportError, report};
+use experiments::report::{ReportError, report_with_sensor};
+use experiments::sensor::SensorFile;
 
 /// Turn a run directory into the thesis's results: report.html, report.md, plots and
 /// summary.json.
@@ -15,11 +16,24 @@ pub(crate) struct Cmd {
     /// Where to write the report [default: RUN_DIR/report].
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// A calibrated sensor file (`gelrig calibrate`): add "GelSight force against the force
+    /// sensor", the wrench read from the field scored against the force sensor.
+    #[arg(long, value_name = "SENSOR.yaml")]
+    sensor: Option<PathBuf>,
 }
 
 impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
-        match report(&self.run, self.out.as_deref()) {
+        let sensor = match self.sensor.as_deref().map(SensorFile::read) {
+            Some(Ok(s)) => Some(s),
+            Some(Err(e)) => {
+                err!("error: {e}");
+                return Ok(ExitCode::from(super::EXIT_INVALID));
+            }
+            None => None,
+        };
+        let with = sensor.as_ref().zip(self.sensor.as_deref());
+        match report_with_sensor(&self.run, self.out.as_deref(), with) {
             Ok(w) => {
                 out!("sections: {}", w.sections.join("; "));
                 out!("wrote {}", w.dir.join("report.html").display());

@@ -56,6 +56,10 @@ pub(crate) struct Cmd {
     /// Threads decoding frames ahead of the tracker, at most 16 [default: one per core].
     #[arg(long, value_name = "N", default_value_t = 0)]
     decoders: usize,
+    /// A calibrated sensor file (`gelrig calibrate`): also read force and torque from the
+    /// field of every frame into wrench.csv beside markers.csv.
+    #[arg(long, value_name = "SENSOR.yaml", conflicts_with = "detect_only")]
+    sensor: Option<PathBuf>,
 }
 
 impl Cmd {
@@ -128,6 +132,22 @@ impl Cmd {
             }
         };
         let out = self.out.unwrap_or(default_out);
+        let sensor = match self
+            .sensor
+            .as_deref()
+            .map(experiments::sensor::SensorFile::read)
+        {
+            Some(Ok(s)) => Some(s),
+            Some(Err(e)) => {
+                err!("error: {e}");
+                return Ok(ExitCode::from(super::EXIT_INVALID));
+            }
+            None => None,
+        };
+        let times = match &input {
+            Input::RunDir { dir, .. } => experiments::sensor::frame_times(dir),
+            _ => Default::default(),
+        };
         let opts = Options {
             method: self.method,
             field_dir: self.field.clone(),
@@ -227,6 +247,35 @@ impl Cmd {
             1e3 * summary.wall_s / summary.frames.max(1) as f64
         );
         out!("wrote {}", summary.markers_csv.display());
+        if let Some(sensor) = &sensor {
+            let rows = match experiments::sensor::wrench_of_markers(
+                sensor,
+                &summary.markers_csv,
+                &times,
+            ) {
+                Ok(r) => r,
+                Err(e @ experiments::sensor::SensorError::Write { .. }) => return Err(e.into()),
+                Err(e) => {
+                    err!("error: {e}");
+                    return Ok(ExitCode::from(super::EXIT_INVALID));
+                }
+            };
+            let path = summary.markers_csv.with_file_name("wrench.csv");
+            experiments::sensor::write_wrench_csv(&rows, &path)?;
+            if let Some(peak) = rows
+                .iter()
+                .max_by(|a, b| a.fz_n.abs().total_cmp(&b.fz_n.abs()))
+            {
+                out!(
+                    "force from the field ({} frames): largest |Fz| {:.3} ± {:.3} N at frame {}",
+                    rows.len(),
+                    peak.fz_n,
+                    peak.fz_sd_n,
+                    peak.frame
+                );
+            }
+            out!("wrote {}", path.display());
+        }
         if let Some(dir) = &self.field {
             out!(
                 "wrote field pictures and decomposition tables to {}",

@@ -1,0 +1,338 @@
+//! The sensor file (`SENSOR.yaml`): a calibrated GelSight as a durable, versioned artifact —
+//! what it was calibrated on (marker layout, view scale, runs, ranges), the model, and its
+//! own held-out error — so a force read from the field years later can say where it came
+//! from and how far to trust it.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use analysis::force_sensor::ridge::{ChannelFit, LinearModel};
+use analysis::force_sensor::{CHANNELS, FEATURES, Layout};
+use serde::{Deserialize, Serialize};
+
+/// What every sensor file says it is.
+pub const FORMAT: &str = "gelrig-sensor";
+/// The newest version this build writes and reads.
+pub const VERSION: u32 = 1;
+/// The one method of version 1.
+pub const METHOD: &str = "field-moments-ridge";
+
+/// Why a sensor file could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorFileError {
+    /// Reading or parsing failed.
+    #[error("{path}: {detail}; fix: {fix}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        detail: String,
+        /// What to do.
+        fix: &'static str,
+    },
+    /// Writing failed.
+    #[error("cannot write {path}: {detail}; fix: check the folder exists and is writable")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        detail: String,
+    },
+}
+
+/// A calibrated GelSight.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorFile {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Format version ([`VERSION`]).
+    pub version: u32,
+    /// When it was calibrated (RFC 3339, UTC).
+    pub created: String,
+    /// The sensor the calibration runs used (their protocol's `sensor.kind`).
+    pub sensor: String,
+    /// The camera's view of the gel.
+    pub view: View,
+    /// The untouched marker layout everything is measured from.
+    pub layout: LayoutFile,
+    /// How the field is turned into the wrench ([`METHOD`]).
+    pub method: String,
+    /// The field moments the model reads, in order.
+    pub features: Vec<String>,
+    /// The fitted model.
+    pub model: ModelFile,
+    /// Per channel, the range of the calibration's force sensor readings.
+    pub ranges: BTreeMap<String, [f64; 2]>,
+    /// The runs it was calibrated on.
+    pub calibrated_on: Vec<RunRef>,
+    /// Its own error on data it was not fitted to.
+    pub held_out: HeldOut,
+}
+
+/// The camera's view.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct View {
+    /// Image scale on the gel, mm per pixel.
+    pub mm_per_px: f64,
+    /// Frame width, px.
+    pub width_px: usize,
+    /// Frame height, px.
+    pub height_px: usize,
+}
+
+/// The reference marker layout.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayoutFile {
+    /// Origin of the field moments, px.
+    pub centre_px: [f64; 2],
+    /// Reference marker centres, px.
+    pub reference_px: Vec<[f64; 2]>,
+}
+
+/// The model: feature standardisation and one ridge fit per channel.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFile {
+    /// Feature means.
+    pub mean: Vec<f64>,
+    /// Feature standard deviations.
+    pub scale: Vec<f64>,
+    /// Calibration frames.
+    pub samples: usize,
+    /// Per channel (`fx_n`, `fy_n`, `fz_n`, `tz_nmm`).
+    pub channels: BTreeMap<String, ChannelFile>,
+}
+
+/// One channel's ridge fit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChannelFile {
+    /// Weights on the standardised features.
+    pub weights: Vec<f64>,
+    /// Intercept.
+    pub bias: f64,
+    /// Ridge parameter (GCV).
+    pub lambda: f64,
+    /// Residual scale, the channel's unit.
+    pub sigma: f64,
+    /// Effective degrees of freedom.
+    pub dof: f64,
+    /// (XᵀX + λI)⁻¹, row-major.
+    pub inv_gram: Vec<f64>,
+}
+
+/// A calibration run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunRef {
+    /// Run directory name.
+    pub run: String,
+    /// Its protocol.
+    pub protocol: String,
+    /// Its indenter, as the protocol gives it.
+    pub indenter: String,
+    /// Frames used.
+    pub frames: usize,
+}
+
+/// Held-out error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeldOut {
+    /// How data was held out.
+    pub by: String,
+    /// Per channel.
+    pub channels: BTreeMap<String, ErrorStats>,
+}
+
+/// Error of one channel against the force sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ErrorStats {
+    /// Root-mean-square error, the channel's unit.
+    pub rmse: f64,
+    /// RMSE in % of the calibrated range (Fx and Fy: of the shear force's, the larger of
+    /// their two ranges).
+    pub pct_range: f64,
+    /// Mean error (GelSight − force sensor).
+    pub bias: f64,
+}
+
+impl SensorFile {
+    /// The layout the model reads fields with.
+    pub fn layout(&self) -> Layout {
+        Layout::new(
+            self.layout.reference_px.clone(),
+            self.view.mm_per_px,
+            self.layout.centre_px,
+        )
+    }
+
+    /// The model as the analysis crate uses it.
+    pub fn model(&self) -> LinearModel {
+        LinearModel {
+            mean: self.model.mean.clone(),
+            scale: self.model.scale.clone(),
+            samples: self.model.samples,
+            channels: CHANNELS
+                .iter()
+                .map(|c| {
+                    let f = self.model.channels.get(*c);
+                    ChannelFit {
+                        weights: f.map(|f| f.weights.clone()).unwrap_or_default(),
+                        bias: f.map_or(0.0, |f| f.bias),
+                        lambda: f.map_or(0.0, |f| f.lambda),
+                        sigma: f.map_or(0.0, |f| f.sigma),
+                        inv_gram: f.map(|f| f.inv_gram.clone()).unwrap_or_default(),
+                        dof: f.map_or(0.0, |f| f.dof),
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// The model's part of a sensor file.
+    pub fn model_file(m: &LinearModel) -> ModelFile {
+        ModelFile {
+            mean: m.mean.clone(),
+            scale: m.scale.clone(),
+            samples: m.samples,
+            channels: CHANNELS
+                .iter()
+                .zip(&m.channels)
+                .map(|(name, c)| {
+                    (
+                        (*name).to_string(),
+                        ChannelFile {
+                            weights: c.weights.clone(),
+                            bias: c.bias,
+                            lambda: c.lambda,
+                            sigma: c.sigma,
+                            dof: c.dof,
+                            inv_gram: c.inv_gram.clone(),
+                        },
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    /// Reads and checks a sensor file.
+    pub fn read(path: &Path) -> Result<Self, SensorFileError> {
+        let err = |detail: String, fix: &'static str| SensorFileError::Read {
+            path: path.to_path_buf(),
+            detail,
+            fix,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            err(
+                e.to_string(),
+                "give the SENSOR.yaml that `gelrig calibrate --out` wrote",
+            )
+        })?;
+        // The header first, so a newer file says so rather than failing on a field.
+        #[derive(Deserialize)]
+        struct Header {
+            format: Option<String>,
+            version: Option<u32>,
+        }
+        let h: Header = serde_yaml::from_str(&text).map_err(|e| {
+            err(
+                format!("not a sensor file: {e}"),
+                "give the SENSOR.yaml that `gelrig calibrate --out` wrote",
+            )
+        })?;
+        if h.format.as_deref() != Some(FORMAT) {
+            return Err(err(
+                format!("`format` is {:?}, not {FORMAT:?}", h.format),
+                "give the SENSOR.yaml that `gelrig calibrate --out` wrote",
+            ));
+        }
+        match h.version {
+            Some(v) if v <= VERSION && v > 0 => {}
+            v => {
+                return Err(err(
+                    format!("sensor file version {v:?}; this gelrig reads versions 1 to {VERSION}"),
+                    "use the gelrig that wrote it, or calibrate again with this one",
+                ));
+            }
+        }
+        let s: Self = serde_yaml::from_str(&text).map_err(|e| {
+            err(
+                e.to_string(),
+                "the file was edited or truncated: calibrate again, or restore it",
+            )
+        })?;
+        s.check().map_err(|d| {
+            err(
+                d,
+                "the file was edited or truncated: calibrate again, or restore it",
+            )
+        })?;
+        Ok(s)
+    }
+
+    /// Internal consistency: dimensions agree, numbers are finite.
+    fn check(&self) -> Result<(), String> {
+        if self.method != METHOD {
+            return Err(format!(
+                "method {:?}: this gelrig knows {METHOD:?}",
+                self.method
+            ));
+        }
+        let p = FEATURES.len();
+        if self.features != FEATURES {
+            return Err(format!(
+                "features {:?}, expected {FEATURES:?}",
+                self.features
+            ));
+        }
+        if self.model.mean.len() != p || self.model.scale.len() != p {
+            return Err(format!("model.mean and model.scale need {p} values"));
+        }
+        if !(self.view.mm_per_px.is_finite() && self.view.mm_per_px > 0.0) {
+            return Err("view.mm_per_px must be a positive number".into());
+        }
+        if self.layout.reference_px.len() < 10 {
+            return Err("layout.reference_px has fewer than 10 markers".into());
+        }
+        for c in CHANNELS {
+            let f = self
+                .model
+                .channels
+                .get(c)
+                .ok_or_else(|| format!("model.channels lacks {c}"))?;
+            if f.weights.len() != p || f.inv_gram.len() != p * p {
+                return Err(format!(
+                    "model.channels.{c}: weights need {p}, inv_gram {}",
+                    p * p
+                ));
+            }
+            let all = f
+                .weights
+                .iter()
+                .chain(&f.inv_gram)
+                .chain([&f.bias, &f.sigma]);
+            if all.into_iter().any(|v| !v.is_finite()) {
+                return Err(format!("model.channels.{c} has a non-finite number"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the file (to a temporary beside it, then renamed: a failure leaves no half
+    /// file under the name).
+    pub fn write(&self, path: &Path) -> Result<(), SensorFileError> {
+        let err = |detail: String| SensorFileError::Write {
+            path: path.to_path_buf(),
+            detail,
+        };
+        let text = serde_yaml::to_string(self).map_err(|e| err(e.to_string()))?;
+        let tmp = path.with_extension("yaml.partial");
+        std::fs::write(&tmp, text).map_err(|e| err(e.to_string()))?;
+        std::fs::rename(&tmp, path).map_err(|e| err(e.to_string()))
+    }
+}

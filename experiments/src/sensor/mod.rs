@@ -1,0 +1,148 @@
+//! The GelSight as a force sensor: `gelrig calibrate` learns the map from the marker field
+//! to the wrench on runs with frames and a force sensor and writes it as a sensor file
+//! ([`file`]); `gelrig track --sensor` and `gelrig report --sensor` read the wrench from the
+//! field of any run with it ([`wrench`]). The numbers are [`analysis::force_sensor`]'s.
+
+pub mod calibrate;
+pub mod file;
+pub mod wrench;
+
+use std::path::{Path, PathBuf};
+
+use analysis::field::MarkerField;
+
+use crate::report::{ForceRow, RunData};
+
+pub use calibrate::calibrate;
+pub use file::{SensorFile, SensorFileError};
+pub use wrench::{WrenchRow, read_wrench, wrench_of_markers, write_wrench_csv};
+
+/// Why the GelSight's force could not be calibrated or read.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorError {
+    /// A run could not be read.
+    #[error(transparent)]
+    Run(#[from] crate::report::ReportError),
+    /// A run lacks what calibration or reading needs.
+    #[error("{path}: {detail}; fix: {fix}")]
+    Unfit {
+        /// The run directory.
+        path: PathBuf,
+        /// What it lacks.
+        detail: String,
+        /// What to do.
+        fix: &'static str,
+    },
+    /// The marker layout or the model refused the data.
+    #[error("{path}: {source}")]
+    Model {
+        /// The run (or sensor file) concerned.
+        path: PathBuf,
+        /// The analysis crate's reason.
+        source: analysis::force_sensor::SensorError,
+    },
+    /// The sensor file.
+    #[error(transparent)]
+    File(#[from] SensorFileError),
+    /// Writing an output failed.
+    #[error("cannot write {path}: {detail}; fix: check the folder exists and is writable")]
+    Write {
+        /// The output.
+        path: PathBuf,
+        /// What went wrong.
+        detail: String,
+    },
+}
+
+/// One frame of a run: its number, time and field.
+pub struct RunFrame {
+    pub frame: u64,
+    pub t_ns: u64,
+    /// The step it was taken in (0 where unknown).
+    pub step: u32,
+    pub field: MarkerField,
+}
+
+/// The frames of a run with their fields (frame 0, the reference, first).
+pub(crate) fn run_frames(data: &RunData) -> Vec<RunFrame> {
+    data.frames
+        .iter()
+        .filter_map(|f| {
+            Some(RunFrame {
+                frame: f.frame,
+                t_ns: f.t_ns,
+                step: f.step,
+                field: crate::report::analyse::frame_field(data, f.frame)?,
+            })
+        })
+        .collect()
+}
+
+/// The force sensor's wrench when a frame of `step` was taken at `t_ns`: for a frame
+/// captured at the end of a settled step (within 0.1 s of its settle end), the step's
+/// force-window mean (the quasistatic value the frame shows, with a tenth of a single
+/// sample's noise over a 10 s window); else [`wrench_at`].
+pub(crate) fn reference_at(data: &RunData, step: u32, t_ns: u64) -> Option<[f64; 4]> {
+    let captured = data.steps.iter().find(|s| {
+        s.step == step
+            && step > 0
+            && s.force_window_s > 0.0
+            && s.settle_end_ns.abs_diff(t_ns) <= 100_000_000
+    });
+    match captured {
+        Some(s) => Some([s.fx_n, s.fy_n, s.fz_n, s.tz_nmm]),
+        None => wrench_at(&data.force, t_ns),
+    }
+}
+
+/// The force sensor's wrench (Fx, Fy, Fz, Tz) at `t_ns`: the mean of the samples within
+/// 60 ms (a frame's exposure against 20–1000 Hz force), else the nearest within 250 ms.
+pub(crate) fn wrench_at(force: &[ForceRow], t_ns: u64) -> Option<[f64; 4]> {
+    let i = force.partition_point(|r| r.t_ns < t_ns);
+    let near = |r: &&ForceRow| r.t_ns.abs_diff(t_ns) <= 60_000_000;
+    let lo = force[..i].iter().rev().take_while(near).count();
+    let hi = force[i..].iter().take_while(near).count();
+    let window = &force[i - lo..i + hi];
+    if !window.is_empty() {
+        let n = window.len() as f64;
+        let mean = |f: fn(&ForceRow) -> f64| window.iter().map(f).sum::<f64>() / n;
+        return Some([
+            mean(|r| r.fx_n),
+            mean(|r| r.fy_n),
+            mean(|r| r.fz_n),
+            mean(|r| r.tz_nmm),
+        ]);
+    }
+    [i.checked_sub(1), Some(i)]
+        .into_iter()
+        .flatten()
+        .filter_map(|k| force.get(k))
+        .filter(|r| r.t_ns.abs_diff(t_ns) <= 250_000_000)
+        .min_by_key(|r| r.t_ns.abs_diff(t_ns))
+        .map(|r| [r.fx_n, r.fy_n, r.fz_n, r.tz_nmm])
+}
+
+/// Frame number → (time, step) of a run directory's frames (empty when it has none).
+pub fn frame_times(run_dir: &Path) -> std::collections::BTreeMap<u64, (u64, u32)> {
+    crate::report::read_csv::<crate::report::FrameRow>(&run_dir.join("frames.csv"))
+        .map(|rows| {
+            rows.into_iter()
+                .map(|r| (r.frame, (r.t_ns, r.step)))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// The image scale of a run (its sensor's view over its frames), mm/px.
+pub(crate) fn run_mm_per_px(data: &RunData) -> Option<f64> {
+    let (w, h) = data.frame_size?;
+    crate::track::run_scale(&data.dir, w, h)
+}
+
+fn unfit(dir: &Path, detail: impl Into<String>, fix: &'static str) -> SensorError {
+    SensorError::Unfit {
+        path: dir.to_path_buf(),
+        detail: detail.into(),
+        fix,
+    }
+}

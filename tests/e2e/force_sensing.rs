@@ -17,13 +17,20 @@ fn dry(name: &str, seed: u64, dir: &Path) -> PathBuf {
     o.dir
 }
 
-/// The portable sensor calibrated on normal, shear and rotation runs of seed 1.
+/// The portable sensor calibrated on normal, shear and rotation runs of seed 1, once per
+/// test process (calibrating tracks the runs' frames into their directories, which the
+/// tests share).
 fn portable_sensor() -> SensorFile {
-    let runs: Vec<PathBuf> = ["portable-normal", "portable-shear", "portable-rotation"]
-        .iter()
-        .map(|n| shared_dry_run(n))
-        .collect();
-    calibrate(&runs).unwrap()
+    static SENSOR: std::sync::OnceLock<SensorFile> = std::sync::OnceLock::new();
+    SENSOR
+        .get_or_init(|| {
+            let runs: Vec<PathBuf> = ["portable-normal", "portable-shear", "portable-rotation"]
+                .iter()
+                .map(|n| shared_dry_run(n))
+                .collect();
+            calibrate(&runs).unwrap()
+        })
+        .clone()
 }
 
 #[test]
@@ -126,7 +133,7 @@ fn a_sensor_file_is_refused_where_it_does_not_belong() {
     let path = tmp.path().join("portable.yaml");
     portable_sensor().write(&path).unwrap();
     // Another gel (the box sensor's grid) is another marker layout.
-    let box_run = shared_dry_run("box-normal-flat");
+    let box_run = dry("box-normal-flat", 1, &tmp.path().join("box"));
     let o = Command::new(gelrig())
         .arg("report")
         .arg(&box_run)

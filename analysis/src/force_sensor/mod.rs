@@ -24,6 +24,7 @@
 //! edge does not take its cell of the integral with it.
 
 pub mod ridge;
+pub mod traction;
 
 use crate::field::MarkerField;
 

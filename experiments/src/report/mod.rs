@@ -212,18 +212,7 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, ReportError> {
     if frames.len() > 1 {
         let path = dir.join("markers.csv");
         if !path.is_file() || !dir.join("contact.csv").is_file() {
-            crate::track::track(
-                &crate::track::Input::RunDir {
-                    dir: dir.to_path_buf(),
-                    reference: None,
-                },
-                &path,
-                &crate::track::Options::default(),
-            )
-            .map_err(|e| ReportError::Missing {
-                path: path.clone(),
-                detail: format!("tracking the run's frames failed: {e}"),
-            })?;
+            track_into_place(dir)?;
         }
         for m in read_csv::<MarkerRow>(&path)? {
             markers.entry(m.frame).or_insert_with(Vec::new).push(m);
@@ -243,6 +232,39 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, ReportError> {
         contact,
         tactile: trials::read_tactile(dir)?,
     })
+}
+
+/// Tracks the run's frames into `markers.csv` and `contact.csv`: written in a folder of this
+/// process's own and renamed into place when complete, so a second report or calibration
+/// reading the same run meanwhile never sees a half-written table.
+fn track_into_place(dir: &Path) -> Result<(), ReportError> {
+    let work = dir.join(format!(".tracking-{}", std::process::id()));
+    let err = |path: PathBuf, detail: String| ReportError::Missing { path, detail };
+    std::fs::create_dir_all(&work).map_err(|e| err(work.clone(), e.to_string()))?;
+    let markers = work.join("markers.csv");
+    let tracked = crate::track::track(
+        &crate::track::Input::RunDir {
+            dir: dir.to_path_buf(),
+            reference: None,
+        },
+        &markers,
+        &crate::track::Options::default(),
+    )
+    .map_err(|e| {
+        err(
+            dir.join("markers.csv"),
+            format!("tracking the run's frames failed: {e}"),
+        )
+    });
+    let placed = tracked.and_then(|_| {
+        for name in ["contact.csv", "markers.csv"] {
+            std::fs::rename(work.join(name), dir.join(name))
+                .map_err(|e| err(dir.join(name), e.to_string()))?;
+        }
+        Ok(())
+    });
+    let _ = std::fs::remove_dir_all(&work);
+    placed
 }
 
 fn first_frame_size(dir: &Path) -> Option<(usize, usize)> {

@@ -16,6 +16,7 @@ pub mod progress;
 pub mod protocol;
 pub mod record;
 pub mod report;
+pub mod rundir;
 pub mod runner;
 pub mod runs;
 pub mod sensor;

@@ -28,7 +28,7 @@ fn portable_sensor() -> SensorFile {
                 .iter()
                 .map(|n| shared_dry_run(n))
                 .collect();
-            calibrate(&runs).unwrap()
+            calibrate(&runs, &Default::default()).unwrap()
         })
         .clone()
 }
@@ -174,6 +174,120 @@ fn a_sensor_file_is_refused_where_it_does_not_belong() {
     let loaded =
         crate::support::load_text(tmp2.path(), &std::fs::read_to_string(&p).unwrap()).unwrap();
     let (o, _) = run_virtual(&loaded, tmp2.path(), 1, None);
-    let e = calibrate(&[o.dir]).unwrap_err().to_string();
+    let e = calibrate(&[o.dir], &Default::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("no tracked frames") && e.contains("fix:"), "{e}");
+}
+
+/// The unseen-shape target on the traction map: calibrated on flat-circle and sphere
+/// runs of the box sensor, it reads the normal force of an elliptical and a rectangular
+/// punch it never saw within 5 % of the calibrated span.
+#[test]
+fn the_traction_map_reads_unseen_punches_within_five_percent() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs: Vec<PathBuf> = ["box-normal-flat", "box-normal-sphere", "box-shear-flat"]
+        .iter()
+        .map(|n| dry(n, 1, &tmp.path().join("cal")))
+        .collect();
+    let opts = experiments::sensor::calibrate::CalibrateOptions {
+        traction: true,
+        cell_mm: 1.0,
+        support: Some(1.1),
+    };
+    let sensor = calibrate(&runs, &opts).unwrap();
+    assert_eq!(sensor.method, "traction-map");
+    let t = sensor.traction.unwrap();
+    assert!(
+        (t.thickness_mm - 4.2).abs() < 1e-9 && t.lambda > 0.0,
+        "{t:?}"
+    );
+    let path = tmp.path().join("box.yaml");
+    sensor.write(&path).unwrap();
+    let back = SensorFile::read(&path).unwrap();
+    assert_eq!(back, sensor);
+    for name in ["box-normal-ellipse", "box-normal-rectangle"] {
+        let dir = dry(name, 2, &tmp.path().join("test"));
+        let out = tmp.path().join(name);
+        experiments::report::report_with_sensor(&dir, Some(&out), Some((&back, &path))).unwrap();
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        let fz = summary["gelsight_force"]["fz"]["pct_range"]
+            .as_f64()
+            .unwrap();
+        assert!(fz < 5.0, "{name}: Fz {fz} % of span");
+    }
+    // Traction pictures from `gelrig track`: one map per frame with contact, calibrated,
+    // whose Fz is the wrench's.
+    let dir = dry("box-normal-ellipse", 3, &tmp.path().join("pictures"));
+    let maps = tmp.path().join("maps");
+    let o = Command::new(gelrig())
+        .arg("track")
+        .arg(&dir)
+        .arg("--out")
+        .arg(tmp.path().join("markers.csv"))
+        .arg("--sensor")
+        .arg(&path)
+        .arg("--traction")
+        .arg(&maps)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = csv_rows(&maps.join("traction.csv"));
+    let contact = csv_rows(&tmp.path().join("contact.csv"));
+    let with_contact = contact.iter().filter(|r| r["radius_px"] != "0.0").count();
+    assert_eq!(rows.len(), with_contact);
+    let wrench = csv_rows(&tmp.path().join("wrench.csv"));
+    for r in &rows {
+        assert_eq!(r["calibrated"], "true");
+        assert!(
+            maps.join(format!("traction_{:0>6}.svg", r["frame"]))
+                .is_file()
+        );
+        let w = wrench.iter().find(|w| w["frame"] == r["frame"]).unwrap();
+        let (a, b): (f64, f64) = (r["fz"].parse().unwrap(), w["fz_n"].parse().unwrap());
+        assert!((a - b).abs() < 1e-3 * b.abs().max(1.0), "{a} vs {b}");
+    }
+}
+
+/// Traction maps of the real GelSight Mini sequence, uncalibrated (no force truth there):
+/// maps on the frames with contact, none on the untouched gel, in nominal units; without
+/// the gel's thickness the command refuses. Reads ../shared/data (skips when absent).
+#[test]
+fn the_real_mini_sequence_gets_nominal_traction_maps() {
+    let Some(dir) = crate::support::mini_press_dir() else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        let mut c = Command::new(gelrig());
+        c.arg("track")
+            .arg("--reference")
+            .arg(dir.join("frame_0000.png"));
+        for k in 1..219 {
+            c.arg(dir.join(format!("frame_{k:04}.png")));
+        }
+        c.arg("--out")
+            .arg(tmp.path().join("markers.csv"))
+            .args(["--contact-min-change", "0.2", "--mm-per-px", "0.058"])
+            .arg("--traction")
+            .arg(tmp.path().join("maps"))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = run(&[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--thickness-mm"));
+    let o = run(&["--thickness-mm", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = csv_rows(&tmp.path().join("maps/traction.csv"));
+    let frames: Vec<u64> = rows.iter().map(|r| r["frame"].parse().unwrap()).collect();
+    assert!(rows.len() > 50, "{}", rows.len());
+    assert!(frames.iter().all(|f| *f > 40), "{frames:?}");
+    assert!(rows.iter().all(|r| r["calibrated"] == "false"));
+    let lambdas: std::collections::BTreeSet<&str> =
+        rows.iter().map(|r| r["lambda"].as_str()).collect();
+    assert_eq!(lambdas.len(), 1, "one λ for the recording");
 }

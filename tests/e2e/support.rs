@@ -316,3 +316,17 @@ pub(crate) fn to_short_form(m: &mut serde_yaml::Mapping) {
     trigger.insert("value".into(), 1.into());
     m.insert("trigger".into(), trigger.into());
 }
+
+/// The real GelSight Mini sequence in ../shared/data, or `None` after printing a visible
+/// skip line (CI has it; a fresh clone does not).
+pub(crate) fn mini_press_dir() -> Option<PathBuf> {
+    let dir = root().join("../shared/data/gelsight-mini-press");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    eprintln!(
+        "skipped: {} is absent (CI has it; a fresh clone does not)",
+        dir.display()
+    );
+    None
+}

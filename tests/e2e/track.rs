@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::support::{col, csv_rows, gelrig, image_size, root, shared_dry_run};
+use crate::support::{col, csv_rows, gelrig, image_size, shared_dry_run};
 
 fn track(args: &[&std::ffi::OsStr]) -> Output {
     Command::new(gelrig())
@@ -314,14 +314,9 @@ fn a_bad_frame_midway_keeps_every_frame_tracked_before_it() {
 /// Reads ../shared/data (skips when absent).
 #[test]
 fn the_real_mini_sequence_tracks_end_to_end() {
-    let dir = root().join("../shared/data/gelsight-mini-press");
-    if !dir.is_dir() {
-        eprintln!(
-            "skipped: {} is absent (CI has it; a fresh clone does not)",
-            dir.display()
-        );
+    let Some(dir) = crate::support::mini_press_dir() else {
         return;
-    }
+    };
     let tmp = tempfile::tempdir().unwrap();
     let frames: Vec<PathBuf> = (0..219)
         .map(|k| dir.join(format!("frame_{k:04}.png")))

@@ -43,6 +43,11 @@ pub const FEATURES: [&str; 8] = [
     "int_r2_r_cross_u",
 ];
 
+/// Names of the traction map's integrals (at the nominal modulus), the features of the
+/// `traction-map` method.
+pub const TRACTION_FEATURES: [&str; 4] =
+    ["traction_fx", "traction_fy", "traction_fz", "traction_tz"];
+
 /// Why a field cannot be read with a layout.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SensorError {

@@ -342,31 +342,9 @@ fn sim_truth(data: &RunData, b: &Block, step: u32) -> Option<f64> {
     })
 }
 
-/// The interior marker field of a frame.
-pub(crate) fn frame_field(data: &RunData, frame: u64) -> Option<MarkerField> {
-    Some(field_of_rows(data.markers.get(&frame)?))
-}
-
-/// The marker field of one frame's rows of `markers.csv`, by marker identity.
-pub(crate) fn field_of_rows(rows: &[super::MarkerRow]) -> MarkerField {
-    let mut sorted: Vec<&super::MarkerRow> = rows.iter().collect();
-    sorted.sort_by_key(|m| m.id);
-    MarkerField {
-        reference_px: sorted
-            .iter()
-            .map(|m| [m.x_px - m.dx_px, m.y_px - m.dy_px])
-            .collect(),
-        displacement_px: sorted.iter().map(|m| [m.dx_px, m.dy_px]).collect(),
-        measured: sorted
-            .iter()
-            .map(|m| m.state == "tracked" || m.state == "merged")
-            .collect(),
-    }
-}
-
 /// The field at the end of step `step` (its last frame).
 fn step_field(data: &RunData, step: u32) -> Option<MarkerField> {
-    frame_field(data, data.last_frame_of(step)?)
+    crate::rundir::frame_field(data, data.last_frame_of(step)?)
 }
 
 pub(super) fn spacing_px(f: &MarkerField) -> f64 {

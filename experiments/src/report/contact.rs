@@ -2,20 +2,9 @@
 //! diameters on its images, §5.1: 5.60 mm at 1.0 mm of the 12.68 mm sphere; 43.6 mm² at the
 //! deepest step), against the simulator's contact radius on dry runs.
 
-use serde::Deserialize;
 use serde_json::{Value, json};
 
 use super::RunData;
-
-/// One row of `contact.csv` (as `gelrig track` writes it).
-#[derive(Debug, Clone, Deserialize)]
-pub(crate) struct ContactRow {
-    pub frame: u64,
-    pub area_px2: f64,
-    pub area_mm2: Option<f64>,
-    pub radius_mm: Option<f64>,
-    pub radius_px: f64,
-}
 
 /// The section's title, markdown and `summary.json` entry, when any step shows contact.
 pub(super) fn section(data: &RunData) -> Option<(String, String, Value)> {

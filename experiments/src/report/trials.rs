@@ -23,29 +23,11 @@
 //! - false alarms: frames not in `stick` during the holds and disturbances of trials that
 //!   held (a loosening that stops on `incipient` is the warning doing its job).
 
-use std::path::Path;
-
-use serde::Deserialize;
 use serde_json::{Value, json};
 
 use super::RunData;
 use super::plots::{Chart, Series};
-
-/// One row of `tactile.csv` (what the report reads).
-#[derive(Debug, Clone, Deserialize)]
-pub(crate) struct TactileCsvRow {
-    pub frame: u64,
-    pub t_ns: u64,
-    pub step: u32,
-    pub trial: u32,
-    pub state: String,
-    pub gripping: bool,
-    pub rotation_deg: f64,
-    #[serde(default)]
-    pub true_sliding: Option<bool>,
-    #[serde(default)]
-    pub true_height_mm: Option<f64>,
-}
+use crate::rundir::TactileCsvRow;
 
 /// One trial's results.
 #[derive(Debug, Clone, PartialEq)]
@@ -210,11 +192,6 @@ fn force_onset(carrying: &[&super::ForceRow], load: f64, disturbing: &[u32]) -> 
         }
     }
     None
-}
-
-/// Reads `tactile.csv` if the run has one.
-pub(crate) fn read_tactile(dir: &Path) -> Result<Vec<TactileCsvRow>, super::ReportError> {
-    Ok(super::read_optional(&dir.join("tactile.csv"))?.unwrap_or_default())
 }
 
 fn opt(v: Option<f64>, digits: usize) -> String {

@@ -719,7 +719,7 @@ fn field_pictures(data: &RunData, b: &Block, out: &Out) -> Result<Vec<String>, R
     let Some(frame) = data.last_frame_of(s.step) else {
         return Ok(Vec::new());
     };
-    let (Some(field), Some((w, h))) = (super::analyse::frame_field(data, frame), data.frame_size)
+    let (Some(field), Some((w, h))) = (crate::rundir::frame_field(data, frame), data.frame_size)
     else {
         return Ok(Vec::new());
     };

@@ -13,11 +13,14 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use analysis::force_sensor::ridge::LinearModel;
-use analysis::force_sensor::{CHANNELS, FEATURES, Layout};
+use analysis::force_sensor::{CHANNELS, FEATURES, Layout, TRACTION_FEATURES};
 
-use super::file::{ErrorStats, FORMAT, HeldOut, LayoutFile, METHOD, RunRef, VERSION, View};
+use super::file::{
+    ErrorStats, FORMAT, HeldOut, LayoutFile, METHOD, METHOD_TRACTION, RunRef, TractionSettings,
+    VERSION, View,
+};
 use super::{SensorError, SensorFile, reference_at, run_frames, run_mm_per_px, unfit};
-use crate::report::read_run;
+use crate::rundir::read_run;
 
 /// One calibration frame.
 #[derive(Debug, Clone)]
@@ -32,9 +35,42 @@ struct RunSamples {
     samples: Vec<Sample>,
 }
 
+/// How to calibrate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CalibrateOptions {
+    /// Field moments (`false`) or the traction map's integrals (`true`).
+    pub traction: bool,
+    /// The traction map's cell, mm.
+    pub cell_mm: f64,
+    /// The traction map's support, in contact radii; `None`: the one of [`SUPPORTS`] with
+    /// the smallest held-out error.
+    pub support: Option<f64>,
+}
+
+/// Supports tried when none is given, in contact radii: the image's contact region is the
+/// traction's support, a little wider for a region found short of the contact's edge.
+pub const SUPPORTS: [f64; 4] = [1.1, 1.2, 1.3, 1.5];
+
+impl Default for CalibrateOptions {
+    fn default() -> Self {
+        Self {
+            traction: false,
+            cell_mm: 1.0,
+            support: None,
+        }
+    }
+}
+
+/// Frames of a run waiting for their features: the run's marker matching, and each frame
+/// with the force sensor's reading beside it.
+struct Pending {
+    map: Vec<Option<usize>>,
+    frames: Vec<(super::RunFrame, [f64; 4])>,
+}
+
 /// Fits a sensor on `runs` (run directories; their frames are tracked first if they have
 /// no `markers.csv`).
-pub fn calibrate(runs: &[PathBuf]) -> Result<SensorFile, SensorError> {
+pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile, SensorError> {
     let Some(first) = runs.first() else {
         return Err(unfit(
             Path::new("."),
@@ -43,7 +79,9 @@ pub fn calibrate(runs: &[PathBuf]) -> Result<SensorFile, SensorError> {
         ));
     };
     let mut layout: Option<(Layout, View, String)> = None;
-    let mut per_run = Vec::new();
+    let mut refs = Vec::new();
+    let mut pending = Vec::new();
+    let mut thickness_mm = None;
     for dir in runs {
         let data = read_run(dir)?;
         let loaded = crate::protocol::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml")))
@@ -115,60 +153,191 @@ pub fn calibrate(runs: &[PathBuf]) -> Result<SensorFile, SensorError> {
                 path: dir.clone(),
                 source,
             })?;
-        let mut samples = Vec::new();
-        for f in &frames {
-            let Some(wrench) = reference_at(&data, f.step, f.t_ns) else {
-                continue;
-            };
-            let (u, _) = lay.displacements_mm(&f.field, &map);
-            samples.push(Sample {
-                features: lay.features(&u).to_vec(),
-                wrench: wrench.to_vec(),
-            });
+        if thickness_mm.is_none() {
+            thickness_mm = crate::protocol::plant_spec(&loaded.protocol, &loaded.compiled)
+                .ok()
+                .map(|s| s.contact.layer.thickness_mm);
         }
-        per_run.push(RunSamples {
-            reference: RunRef {
-                run: dir
-                    .file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
-                protocol: data.protocol_name.clone(),
-                indenter: serde_json::to_string(&loaded.protocol.indenter).unwrap_or_default(),
-                frames: samples.len(),
-            },
-            samples,
+        let frames: Vec<(super::RunFrame, [f64; 4])> = frames
+            .into_iter()
+            .filter_map(|f| {
+                let w = reference_at(&data, f.step, f.t_ns)?;
+                Some((f, w))
+            })
+            .collect();
+        refs.push(RunRef {
+            run: dir
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            protocol: data.protocol_name.clone(),
+            indenter: serde_json::to_string(&loaded.protocol.indenter).unwrap_or_default(),
+            frames: frames.len(),
         });
+        pending.push(Pending { map, frames });
     }
     let Some((layout, view, sensor)) = layout else {
         return Err(unfit(first, "no runs read", "name run directories"));
     };
+    let gathered = Gathered {
+        layout,
+        view,
+        sensor,
+        refs,
+        pending,
+    };
+    if !opts.traction {
+        return finish(&gathered, None, first);
+    }
+    let Some(h) = thickness_mm else {
+        return Err(unfit(
+            first,
+            "the elastomer's thickness is unknown",
+            "calibrate on runs made by `gelrig run` (their protocol gives the sensor)",
+        ));
+    };
+    let supports: Vec<f64> = match opts.support {
+        Some(s) => vec![s],
+        None => SUPPORTS.to_vec(),
+    };
+    let mut best: Option<(f64, SensorFile)> = None;
+    for support in supports {
+        let t = traction_settings(&gathered, h, opts.cell_mm, support);
+        let file = finish(&gathered, Some(t), first)?;
+        let score: f64 = file.held_out.channels.values().map(|s| s.pct_range).sum();
+        if best.as_ref().is_none_or(|(b, _)| score < *b) {
+            best = Some((score, file));
+        }
+    }
+    best.map(|(_, f)| f)
+        .ok_or_else(|| unfit(first, "no support to try", "give --support"))
+}
+
+/// What calibration read from the runs, before features.
+struct Gathered {
+    layout: Layout,
+    view: View,
+    sensor: String,
+    refs: Vec<RunRef>,
+    pending: Vec<Pending>,
+}
+
+/// Features, fit and held-out error of `g`, with the traction map's settings `traction`
+/// (field moments without).
+fn finish(
+    g: &Gathered,
+    traction: Option<TractionSettings>,
+    first: &Path,
+) -> Result<SensorFile, SensorError> {
+    let (layout, view) = (&g.layout, &g.view);
+    let reader_kernel = traction
+        .as_ref()
+        .map(|t| (super::reader::kernel_from_view(view, t), *t));
+    let per_run: Vec<RunSamples> = g
+        .pending
+        .iter()
+        .zip(g.refs.iter().cloned())
+        .map(|(p, reference)| RunSamples {
+            reference,
+            samples: p
+                .frames
+                .iter()
+                .map(|(f, w)| {
+                    let (u, _) = layout.displacements_mm(&f.field, &p.map);
+                    let features = match &reader_kernel {
+                        None => layout.features(&u).to_vec(),
+                        Some((kernel, t)) => super::reader::traction_map(
+                            layout,
+                            kernel,
+                            t,
+                            &u,
+                            f.contact,
+                            Some(t.lambda),
+                        )
+                        .map_or(vec![0.0; 4], |m| m.wrench.to_vec()),
+                    };
+                    Sample {
+                        features,
+                        wrench: w.to_vec(),
+                    }
+                })
+                .collect(),
+        })
+        .collect();
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
     let model = fit(&all).map_err(|source| SensorError::Model {
-        path: first.clone(),
+        path: first.to_path_buf(),
         source,
     })?;
     let ranges = ranges(&all);
     let held_out = held_out(&per_run, &ranges).map_err(|source| SensorError::Model {
-        path: first.clone(),
+        path: first.to_path_buf(),
         source,
     })?;
     Ok(SensorFile {
         format: FORMAT.into(),
         version: VERSION,
         created: jiff::Timestamp::now().to_string(),
-        sensor,
-        view,
+        sensor: g.sensor.clone(),
+        view: view.clone(),
         layout: LayoutFile {
             centre_px: layout.centre_px,
             reference_px: layout.reference_px.clone(),
         },
-        method: METHOD.into(),
-        features: FEATURES.iter().map(|f| (*f).to_string()).collect(),
+        method: if traction.is_some() {
+            METHOD_TRACTION
+        } else {
+            METHOD
+        }
+        .into(),
+        features: if traction.is_some() {
+            TRACTION_FEATURES.iter().map(|f| (*f).to_string()).collect()
+        } else {
+            FEATURES.iter().map(|f| (*f).to_string()).collect()
+        },
         model: SensorFile::model_file(&model),
+        traction,
         ranges,
         calibrated_on: per_run.into_iter().map(|r| r.reference).collect(),
         held_out,
     })
+}
+
+/// The traction map's settings: the kernel's cell an eighth of the thickness, and λ the
+/// median of GCV's choices on every fourth frame with a contact region.
+fn traction_settings(
+    g: &Gathered,
+    thickness_mm: f64,
+    cell_mm: f64,
+    support: f64,
+) -> TractionSettings {
+    let mut t = TractionSettings {
+        thickness_mm,
+        kernel_dx_mm: (thickness_mm / 8.0).min(cell_mm / 2.0),
+        cell_mm,
+        support,
+        lambda: 0.0,
+    };
+    let kernel = super::reader::kernel_from_view(&g.view, &t);
+    let mut lambdas: Vec<f64> = g
+        .pending
+        .iter()
+        .flat_map(|p| {
+            p.frames
+                .iter()
+                .filter(|(f, _)| f.contact.is_some())
+                .step_by(4)
+                .map(move |(f, _)| (f, &p.map))
+        })
+        .filter_map(|(f, map)| {
+            let (u, _) = g.layout.displacements_mm(&f.field, map);
+            super::reader::traction_map(&g.layout, &kernel, &t, &u, f.contact, None)
+                .map(|m| m.lambda)
+        })
+        .collect();
+    lambdas.sort_by(f64::total_cmp);
+    t.lambda = lambdas.get(lambdas.len() / 2).copied().unwrap_or(0.0);
+    t
 }
 
 /// Per channel, the calibration's range of the force sensor's readings.

@@ -7,15 +7,18 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use analysis::force_sensor::ridge::{ChannelFit, LinearModel};
-use analysis::force_sensor::{CHANNELS, FEATURES, Layout};
+use analysis::force_sensor::{CHANNELS, FEATURES, Layout, TRACTION_FEATURES};
 use serde::{Deserialize, Serialize};
 
 /// What every sensor file says it is.
 pub const FORMAT: &str = "gelrig-sensor";
 /// The newest version this build writes and reads.
 pub const VERSION: u32 = 1;
-/// The one method of version 1.
+/// Field moments, ridge per channel ([`analysis::force_sensor`]).
 pub const METHOD: &str = "field-moments-ridge";
+/// The inverse traction map's integrals, ridge per channel
+/// ([`analysis::force_sensor::traction`]).
+pub const METHOD_TRACTION: &str = "traction-map";
 
 /// Why a sensor file could not be read or written.
 #[derive(Debug, thiserror::Error)]
@@ -62,6 +65,9 @@ pub struct SensorFile {
     pub features: Vec<String>,
     /// The fitted model.
     pub model: ModelFile,
+    /// The traction map's settings (`traction-map` only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub traction: Option<TractionSettings>,
     /// Per channel, the range of the calibration's force sensor readings.
     pub ranges: BTreeMap<String, [f64; 2]>,
     /// The runs it was calibrated on.
@@ -80,6 +86,22 @@ pub struct View {
     pub width_px: usize,
     /// Frame height, px.
     pub height_px: usize,
+}
+
+/// How the traction map is solved.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TractionSettings {
+    /// The elastomer's thickness (the layer's Green's tensor), mm.
+    pub thickness_mm: f64,
+    /// Cell of the Green's tensor's kernels, mm.
+    pub kernel_dx_mm: f64,
+    /// Cell of the traction map, mm.
+    pub cell_mm: f64,
+    /// The map's support: a disc of this many times the contact's equivalent radius.
+    pub support: f64,
+    /// Tikhonov regularisation (the median of GCV's choices over the calibration).
+    pub lambda: f64,
 }
 
 /// The reference marker layout.
@@ -277,18 +299,35 @@ impl SensorFile {
 
     /// Internal consistency: dimensions agree, numbers are finite.
     fn check(&self) -> Result<(), String> {
-        if self.method != METHOD {
+        let (features, p): (&[&str], usize) = match self.method.as_str() {
+            METHOD => (&FEATURES, FEATURES.len()),
+            METHOD_TRACTION => (&TRACTION_FEATURES, TRACTION_FEATURES.len()),
+            m => {
+                return Err(format!(
+                    "method {m:?}: this gelrig knows {METHOD:?} and {METHOD_TRACTION:?}"
+                ));
+            }
+        };
+        if self.features != features {
             return Err(format!(
-                "method {:?}: this gelrig knows {METHOD:?}",
-                self.method
-            ));
-        }
-        let p = FEATURES.len();
-        if self.features != FEATURES {
-            return Err(format!(
-                "features {:?}, expected {FEATURES:?}",
+                "features {:?}, expected {features:?}",
                 self.features
             ));
+        }
+        match (&self.traction, self.method.as_str()) {
+            (None, METHOD_TRACTION) => return Err("a traction-map sensor needs `traction`".into()),
+            (Some(t), METHOD_TRACTION) => {
+                let ok = [t.thickness_mm, t.kernel_dx_mm, t.cell_mm, t.support]
+                    .iter()
+                    .all(|v| v.is_finite() && *v > 0.0)
+                    && t.lambda.is_finite()
+                    && t.lambda >= 0.0;
+                if !ok {
+                    return Err("traction: settings must be positive numbers".into());
+                }
+            }
+            (Some(_), _) => return Err("`traction` belongs to a traction-map sensor only".into()),
+            (None, _) => {}
         }
         if self.model.mean.len() != p || self.model.scale.len() != p {
             return Err(format!("model.mean and model.scale need {p} values"));

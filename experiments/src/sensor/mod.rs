@@ -5,24 +5,26 @@
 
 pub mod calibrate;
 pub mod file;
+pub mod maps;
+pub mod reader;
 pub mod wrench;
 
 use std::path::{Path, PathBuf};
 
 use analysis::field::MarkerField;
 
-use crate::report::{ForceRow, RunData};
+use crate::rundir::{ForceRow, RunData};
 
 pub use calibrate::calibrate;
 pub use file::{SensorFile, SensorFileError};
-pub use wrench::{WrenchRow, read_wrench, wrench_of_markers, write_wrench_csv};
+pub use wrench::{WrenchRow, frames_of_markers, read_wrench, wrench_of_markers, write_wrench_csv};
 
 /// Why the GelSight's force could not be calibrated or read.
 #[derive(Debug, thiserror::Error)]
 pub enum SensorError {
     /// A run could not be read.
     #[error(transparent)]
-    Run(#[from] crate::report::ReportError),
+    Run(#[from] crate::rundir::RunDirError),
     /// A run lacks what calibration or reading needs.
     #[error("{path}: {detail}; fix: {fix}")]
     Unfit {
@@ -60,7 +62,15 @@ pub struct RunFrame {
     pub t_ns: u64,
     /// The step it was taken in (0 where unknown).
     pub step: u32,
+    /// The image's contact region: centroid (px) and equivalent radius (px), if found.
+    pub contact: Option<([f64; 2], f64)>,
     pub field: MarkerField,
+}
+
+/// The frames of a run directory with their fields and contact regions (tracked first if
+/// it has no `markers.csv`).
+pub fn load_frames(run_dir: &Path) -> Result<Vec<RunFrame>, SensorError> {
+    Ok(run_frames(&crate::rundir::read_run(run_dir)?))
 }
 
 /// The frames of a run with their fields (frame 0, the reference, first).
@@ -72,10 +82,21 @@ pub(crate) fn run_frames(data: &RunData) -> Vec<RunFrame> {
                 frame: f.frame,
                 t_ns: f.t_ns,
                 step: f.step,
-                field: crate::report::analyse::frame_field(data, f.frame)?,
+                contact: contact_of(&data.contact, f.frame),
+                field: crate::rundir::frame_field(data, f.frame)?,
             })
         })
         .collect()
+}
+
+/// The contact region of `frame` in `contact.csv` rows: centroid and equivalent radius, px.
+pub(crate) fn contact_of(
+    rows: &[crate::rundir::ContactRow],
+    frame: u64,
+) -> Option<([f64; 2], f64)> {
+    rows.iter()
+        .find(|r| r.frame == frame && r.radius_px > 0.0)
+        .and_then(|r| Some(([r.cx_px?, r.cy_px?], r.radius_px)))
 }
 
 /// The force sensor's wrench when a frame of `step` was taken at `t_ns`: for a frame
@@ -124,7 +145,7 @@ pub(crate) fn wrench_at(force: &[ForceRow], t_ns: u64) -> Option<[f64; 4]> {
 
 /// Frame number → (time, step) of a run directory's frames (empty when it has none).
 pub fn frame_times(run_dir: &Path) -> std::collections::BTreeMap<u64, (u64, u32)> {
-    crate::report::read_csv::<crate::report::FrameRow>(&run_dir.join("frames.csv"))
+    crate::rundir::read_csv::<crate::rundir::FrameRow>(&run_dir.join("frames.csv"))
         .map(|rows| {
             rows.into_iter()
                 .map(|r| (r.frame, (r.t_ns, r.step)))

@@ -9,7 +9,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::{RunFrame, SensorError, SensorFile, unfit};
-use crate::report::MarkerRow;
+use crate::rundir::MarkerRow;
 
 /// One frame's wrench read from the GelSight.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -54,9 +54,9 @@ pub(crate) fn wrench_of_frames(
             "track the recording first (gelrig track), with its no-contact reference as frame 0",
         ));
     };
-    let layout = sensor.layout();
-    let model = sensor.model();
-    let map = layout
+    let reader = super::reader::Reader::new(sensor);
+    let map = reader
+        .layout
         .match_markers(&first.field.reference_px)
         .map_err(|source| SensorError::Model {
             path: origin.to_path_buf(),
@@ -65,8 +65,9 @@ pub(crate) fn wrench_of_frames(
     Ok(frames
         .iter()
         .map(|f| {
-            let (u, share) = layout.displacements_mm(&f.field, &map);
-            let (v, sd) = model.predict(&layout.features(&u));
+            let reading = reader.read(f, &map, None);
+            let share = reading.measured_share;
+            let (v, sd) = reader.model.predict(&reading.features);
             let at = |x: &[f64], i: usize| x.get(i).copied().unwrap_or(f64::NAN);
             WrenchRow {
                 frame: f.frame,
@@ -88,7 +89,7 @@ pub(crate) fn wrench_of_frames(
 
 /// The wrench of every frame of a run directory (tracked first if it has no markers.csv).
 pub fn read_wrench(sensor: &SensorFile, run_dir: &Path) -> Result<Vec<WrenchRow>, SensorError> {
-    let data = crate::report::read_run(run_dir)?;
+    let data = crate::rundir::read_run(run_dir)?;
     wrench_of_frames(sensor, &super::run_frames(&data), run_dir)
 }
 
@@ -99,21 +100,36 @@ pub fn wrench_of_markers(
     markers_csv: &Path,
     times: &BTreeMap<u64, (u64, u32)>,
 ) -> Result<Vec<WrenchRow>, SensorError> {
-    let rows: Vec<MarkerRow> = crate::report::read_csv(markers_csv)?;
+    wrench_of_frames(sensor, &frames_of_markers(markers_csv, times)?, markers_csv)
+}
+
+/// The frames of a `markers.csv` (frame 0 the reference) with the contact regions `gelrig
+/// track` wrote beside it (`contact.csv`) and frame times and steps where known.
+pub fn frames_of_markers(
+    markers_csv: &Path,
+    times: &BTreeMap<u64, (u64, u32)>,
+) -> Result<Vec<RunFrame>, SensorError> {
+    let rows: Vec<MarkerRow> = crate::rundir::read_csv(markers_csv)?;
+    let contact_csv = markers_csv.with_file_name("contact.csv");
+    let contact: Vec<crate::rundir::ContactRow> = if contact_csv.is_file() {
+        crate::rundir::read_csv(&contact_csv)?
+    } else {
+        Vec::new()
+    };
     let mut by_frame: BTreeMap<u64, Vec<MarkerRow>> = BTreeMap::new();
     for r in rows {
         by_frame.entry(r.frame).or_default().push(r);
     }
-    let frames: Vec<RunFrame> = by_frame
+    Ok(by_frame
         .iter()
         .map(|(&frame, rows)| RunFrame {
             frame,
             t_ns: times.get(&frame).map_or(0, |t| t.0),
             step: times.get(&frame).map_or(0, |t| t.1),
-            field: crate::report::analyse::field_of_rows(rows),
+            contact: super::contact_of(&contact, frame),
+            field: crate::rundir::field_of_rows(rows),
         })
-        .collect();
-    wrench_of_frames(sensor, &frames, markers_csv)
+        .collect())
 }
 
 /// Writes `rows` as CSV to `path`.

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use experiments::sensor::calibrate::CalibrateOptions;
 use experiments::sensor::{SensorError, calibrate};
 
 /// Learn the GelSight's map from marker field to force and torque on runs with frames and a
@@ -15,11 +16,37 @@ pub(crate) struct Cmd {
     /// The sensor file to write.
     #[arg(long, value_name = "SENSOR.yaml")]
     out: PathBuf,
+    /// How the field becomes a wrench: `moments` (field moments, 2 µs a frame) or
+    /// `traction` (the inverse traction map on the contact, milliseconds a frame).
+    #[arg(long, default_value = "moments", value_parser = ["moments", "traction"])]
+    method: String,
+    /// The traction map's cell, mm.
+    #[arg(long, value_name = "MM", default_value_t = 1.0)]
+    cell_mm: f64,
+    /// The traction map's support: a disc of this many contact radii [default: whichever of
+    /// 1.1, 1.2, 1.3 and 1.5 gives the smallest held-out error].
+    #[arg(long, value_name = "K")]
+    support: Option<f64>,
 }
 
 impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
-        let sensor = match calibrate(&self.runs) {
+        let support_ok = self.support.is_none_or(|s| s.is_finite() && s >= 1.0);
+        if !(self.cell_mm.is_finite() && self.cell_mm >= 0.1 && support_ok) {
+            err!(
+                "error: --cell-mm {} / --support {:?}: fix: a cell of at least 0.1 mm and a \
+                 support of at least 1 contact radius",
+                self.cell_mm,
+                self.support
+            );
+            return Ok(ExitCode::from(super::EXIT_INVALID));
+        }
+        let opts = CalibrateOptions {
+            traction: self.method == "traction",
+            cell_mm: self.cell_mm,
+            support: self.support,
+        };
+        let sensor = match calibrate(&self.runs, &opts) {
             Ok(s) => s,
             Err(e @ SensorError::Write { .. }) => return Err(e.into()),
             Err(e) => {

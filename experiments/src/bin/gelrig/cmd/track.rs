@@ -60,6 +60,14 @@ pub(crate) struct Cmd {
     /// field of every frame into wrench.csv beside markers.csv.
     #[arg(long, value_name = "SENSOR.yaml", conflicts_with = "detect_only")]
     sensor: Option<PathBuf>,
+    /// Write traction-map pictures (`traction_NNNNNN.svg`) and their integrals per frame
+    /// (`traction.csv`) into this folder: calibrated with a `--sensor` of the traction
+    /// method, else at a nominal modulus (needs --thickness-mm and an image scale).
+    #[arg(long, value_name = "DIR", conflicts_with = "detect_only")]
+    traction: Option<PathBuf>,
+    /// The elastomer's thickness for uncalibrated traction maps, mm.
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    thickness_mm: Option<f64>,
 }
 
 impl Cmd {
@@ -144,6 +152,18 @@ impl Cmd {
             }
             None => None,
         };
+        if self.traction.is_some() && sensor.is_none() {
+            match self.thickness_mm {
+                Some(h) if h.is_finite() && h > 0.0 => {}
+                _ => {
+                    err!(
+                        "error: --traction without a traction-map --sensor needs the gel's \
+                         thickness; fix: pass --thickness-mm H (and --mm-per-px for image files)"
+                    );
+                    return Ok(ExitCode::from(super::EXIT_INVALID));
+                }
+            }
+        }
         let times = match &input {
             Input::RunDir { dir, .. } => experiments::sensor::frame_times(dir),
             _ => Default::default(),
@@ -275,6 +295,54 @@ impl Cmd {
                 );
             }
             out!("wrote {}", path.display());
+        }
+        if let Some(dir) = &self.traction {
+            let frames = match experiments::sensor::frames_of_markers(&summary.markers_csv, &times)
+            {
+                Ok(f) => f,
+                Err(e) => {
+                    err!("error: {e}");
+                    return Ok(ExitCode::from(super::EXIT_INVALID));
+                }
+            };
+            let source = match (&sensor, self.thickness_mm, summary.mm_per_px) {
+                (Some(s), _, _) => experiments::sensor::maps::MapSource::Sensor(s),
+                (None, Some(h), Some(s)) => experiments::sensor::maps::MapSource::Nominal {
+                    thickness_mm: h,
+                    mm_per_px: s,
+                },
+                (None, _, _) => {
+                    err!(
+                        "error: --traction needs the image scale; fix: pass --mm-per-px S (a run \
+                         directory has its own)"
+                    );
+                    return Ok(ExitCode::from(super::EXIT_INVALID));
+                }
+            };
+            match experiments::sensor::maps::write_maps(&source, &frames, dir) {
+                Ok(rows) => {
+                    let unit = if rows.first().is_some_and(|r| r.calibrated) {
+                        "N"
+                    } else {
+                        "nominal units (modulus 1 MPa: shape and time course only)"
+                    };
+                    if let Some(peak) = rows.iter().max_by(|a, b| a.fz.abs().total_cmp(&b.fz.abs()))
+                    {
+                        out!(
+                            "traction maps of {} frames with contact; largest Fz {:.4} {unit} at frame {}",
+                            rows.len(),
+                            peak.fz,
+                            peak.frame
+                        );
+                    }
+                    out!("wrote {}", dir.join("traction.csv").display());
+                }
+                Err(e @ experiments::sensor::SensorError::Write { .. }) => return Err(e.into()),
+                Err(e) => {
+                    err!("error: {e}");
+                    return Ok(ExitCode::from(super::EXIT_INVALID));
+                }
+            }
         }
         if let Some(dir) = &self.field {
             out!(

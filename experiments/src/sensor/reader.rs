@@ -1,0 +1,111 @@
+//! A sensor file made ready to read frames: the layout, the model, and for the traction
+//! method the layer's kernels (computed once per sensor, a few milliseconds).
+
+use analysis::force_sensor::Layout;
+use analysis::force_sensor::ridge::LinearModel;
+use analysis::force_sensor::traction::{self, TractionKernel, TractionMap};
+
+use super::RunFrame;
+use super::file::{METHOD_TRACTION, SensorFile, TractionSettings, View};
+
+/// A calibrated sensor ready to read frames.
+pub struct Reader {
+    /// The marker layout.
+    pub layout: Layout,
+    /// The per-channel model.
+    pub model: LinearModel,
+    traction: Option<(TractionKernel, TractionSettings)>,
+}
+
+/// One frame read: the model's features, the share of markers measured, and the traction
+/// map where the method makes one.
+pub struct Reading {
+    /// Features in the sensor's order.
+    pub features: Vec<f64>,
+    /// Share of the layout's markers measured in the frame.
+    pub measured_share: f64,
+    /// The traction map (traction method, frames with a contact region).
+    pub map: Option<TractionMap>,
+}
+
+impl Reader {
+    /// Prepares `file` for reading.
+    pub fn new(file: &SensorFile) -> Self {
+        let traction = (file.method == METHOD_TRACTION)
+            .then_some(file.traction)
+            .flatten()
+            .map(|t| (kernel_for(file, &t), t));
+        Self {
+            layout: file.layout(),
+            model: file.model(),
+            traction,
+        }
+    }
+
+    /// Reads frame `f` (its markers matched to the layout by `map`); `lambda` overrides the
+    /// traction map's regularisation (`None` in calibration's first pass: GCV).
+    pub fn read(
+        &self,
+        f: &RunFrame,
+        map: &[Option<usize>],
+        lambda: Option<Option<f64>>,
+    ) -> Reading {
+        let (u, measured_share) = self.layout.displacements_mm(&f.field, map);
+        match &self.traction {
+            None => Reading {
+                features: self.layout.features(&u).to_vec(),
+                measured_share,
+                map: None,
+            },
+            Some((kernel, t)) => {
+                let tmap = traction_map(
+                    &self.layout,
+                    kernel,
+                    t,
+                    &u,
+                    f.contact,
+                    lambda.unwrap_or(Some(t.lambda)),
+                );
+                Reading {
+                    features: tmap.as_ref().map_or(vec![0.0; 4], |m| m.wrench.to_vec()),
+                    measured_share,
+                    map: tmap,
+                }
+            }
+        }
+    }
+}
+
+/// The layer's kernels for a sensor's view.
+pub(crate) fn kernel_for(file: &SensorFile, t: &TractionSettings) -> TractionKernel {
+    kernel_from_view(&file.view, t)
+}
+
+/// The layer's kernels reaching across `view`'s diagonal.
+pub(crate) fn kernel_from_view(view: &View, t: &TractionSettings) -> TractionKernel {
+    let reach = (view.width_px as f64).hypot(view.height_px as f64) * view.mm_per_px;
+    TractionKernel::new(t.thickness_mm, t.kernel_dx_mm, reach)
+}
+
+/// The traction map of displacements `u_mm` at the layout's markers, on a disc of
+/// `support` × the contact's equivalent radius about its centroid; `None` without contact.
+pub(crate) fn traction_map(
+    layout: &Layout,
+    kernel: &TractionKernel,
+    t: &TractionSettings,
+    u_mm: &[[f64; 2]],
+    contact: Option<([f64; 2], f64)>,
+    lambda: Option<f64>,
+) -> Option<TractionMap> {
+    let (c_px, r_px) = contact?;
+    let s = layout.mm_per_px;
+    let to_mm = |p: [f64; 2]| {
+        [
+            (p[0] - layout.centre_px[0]) * s,
+            (p[1] - layout.centre_px[1]) * s,
+        ]
+    };
+    let cells = traction::disc_cells(to_mm(c_px), r_px * s * t.support, t.cell_mm);
+    let markers: Vec<[f64; 2]> = layout.reference_px.iter().map(|p| to_mm(*p)).collect();
+    traction::solve(kernel, &markers, u_mm, &cells, t.cell_mm, lambda)
+}

@@ -179,6 +179,35 @@ pub fn load_with(
         return Err(diags);
     }
     let compiled = compile::compile_with(&protocol, &rig, budget);
+    if let Some(rel) = &protocol.record.gelsight_force {
+        let at = rig::config::YamlPath::root()
+            .key("record")
+            .key("gelsight_force");
+        let file = protocol_path.parent().unwrap_or(Path::new(".")).join(rel);
+        let frames = compiled.actions.iter().any(
+            |a| matches!(&a.kind, compile::ActionKind::StreamsBegin(r) if r.frames_hz.is_some()),
+        );
+        if !file.is_file() {
+            diags.push(Diagnostic::at_path(
+                protocol_path,
+                &text,
+                &at,
+                Severity::Error,
+                format!("the sensor file {} does not exist", file.display()),
+                "give the SENSOR.yaml written by `gelrig calibrate --out`, relative to this protocol",
+            ));
+        } else if !frames {
+            diags.push(Diagnostic::at_path(
+                protocol_path,
+                &text,
+                &at,
+                Severity::Error,
+                "the GelSight's force is read from tracked frames, and this protocol records none",
+                "record continuous frames (`record: {frames: 25 Hz, blocks: …}`) where the force \
+                 is wanted",
+            ));
+        }
+    }
     for i in &compiled.issues {
         let (file, src) = if i.in_rig {
             (&rig_path, &rig_text)

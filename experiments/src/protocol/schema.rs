@@ -242,6 +242,11 @@ pub struct Streams {
     /// Camera frames to `frames/`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frames: Option<Frequency>,
+    /// A calibrated sensor file (`gelrig calibrate`), relative to this file: the wrench read
+    /// from the markers of every frame the live path tracks (continuous frames in `record`
+    /// blocks), beside the force sensor, in `tactile.csv`'s `gelsight_*` columns.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gelsight_force: Option<String>,
 }
 
 /// One block of the sequence.

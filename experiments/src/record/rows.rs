@@ -208,4 +208,12 @@ pub struct TactileRow {
     pub true_rotating: Option<bool>,
     /// Simulated: the object stands on the table.
     pub true_on_table: Option<bool>,
+    /// The GelSight's own reading of Fx with `record.gelsight_force`'s sensor file, N.
+    pub gelsight_fx_n: Option<f64>,
+    /// Its Fy, N.
+    pub gelsight_fy_n: Option<f64>,
+    /// Its Fz, N.
+    pub gelsight_fz_n: Option<f64>,
+    /// Its Tz, N·mm.
+    pub gelsight_tz_nmm: Option<f64>,
 }

@@ -50,6 +50,8 @@ pub(super) struct Exec<'a> {
     pub(super) tactile: Option<super::tactile::LiveTactile>,
     /// The camera's image scale, mm/px (for contact areas), when the protocol gives a view.
     pub(super) mm_per_px: Option<f64>,
+    /// The sensor file of `record.gelsight_force`, read before the run starts.
+    pub(super) gelsight: Option<std::sync::Arc<crate::sensor::SensorFile>>,
     /// The running move stops when the tactile state reaches this.
     pub(super) slip_stop: Option<analysis::tactile::SlipState>,
     /// The tactile stop was reached during the current move.
@@ -107,6 +109,7 @@ impl<'a> Exec<'a> {
             phase: "starting",
             tactile: None,
             mm_per_px: None,
+            gelsight: None,
             slip_stop: None,
             slip_hit: false,
         }
@@ -232,7 +235,10 @@ impl<'a> Exec<'a> {
         // Continuous frames feed the live tactile path; a new block starts a new reference.
         if self.next_frame_stream.is_some() {
             if self.tactile.is_none() {
-                self.tactile = Some(super::tactile::LiveTactile::new(self.mm_per_px));
+                self.tactile = Some(super::tactile::LiveTactile::new(
+                    self.mm_per_px,
+                    self.gelsight.as_deref(),
+                ));
             }
         } else if self.tactile.take().is_some() {
             self.progress.set_tactile(None);

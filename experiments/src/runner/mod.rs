@@ -44,6 +44,18 @@ use exec::Exec;
 
 /// The camera's image scale, mm/px: the sensor's view fitted into the frame (as `gelrig
 /// track` reads a run directory's scale).
+/// The sensor file of `record.gelsight_force` (relative to the protocol), read before any
+/// step runs; a file that does not read stops the run there, naming why.
+fn gelsight_sensor(loaded: &Loaded) -> Result<Option<crate::sensor::SensorFile>, String> {
+    let Some(rel) = &loaded.protocol.record.gelsight_force else {
+        return Ok(None);
+    };
+    let base = loaded.path.parent().unwrap_or(std::path::Path::new("."));
+    crate::sensor::SensorFile::read(&base.join(rel))
+        .map(Some)
+        .map_err(|e| e.to_string())
+}
+
 fn image_scale(loaded: &Loaded, rig: &Rig) -> Option<f64> {
     let cam = rig.camera.as_ref()?.info();
     let spec = plant_spec(&loaded.protocol, &loaded.compiled).ok()?;
@@ -100,6 +112,8 @@ enum Stop {
     Device(#[from] RigError),
     #[error("recording failed: {0}")]
     Record(#[from] RecordError),
+    #[error("record.gelsight_force: {0}")]
+    Sensor(String),
 }
 
 impl Stop {
@@ -111,7 +125,8 @@ impl Stop {
             | Stop::Stuck(_)
             | Stop::Missed(_)
             | Stop::Device(_)
-            | Stop::Record(_) => Status::Failed,
+            | Stop::Record(_)
+            | Stop::Sensor(_) => Status::Failed,
         }
     }
 }
@@ -256,9 +271,13 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
     let monitor = start_watchdog(&mut rig, loaded, &clock, req.clock);
     let mut exec = Exec::new(rig, monitor, clock.clone(), rec, &progress, cancel, loaded);
     exec.mm_per_px = image_scale(loaded, &exec.rig);
-    let result = match opened {
-        Ok(()) => exec.run_actions(&loaded.compiled.actions).await,
-        Err(e) => Err(Stop::Record(e)),
+    let result = match (opened, gelsight_sensor(loaded)) {
+        (Ok(()), Ok(sensor)) => {
+            exec.gelsight = sensor.map(std::sync::Arc::new);
+            exec.run_actions(&loaded.compiled.actions).await
+        }
+        (Err(e), _) => Err(Stop::Record(e)),
+        (_, Err(why)) => Err(Stop::Sensor(why)),
     };
     let (status, message) = exec.stopped(result).await;
     let retract = exec.retract().await;

@@ -245,6 +245,13 @@ impl Exec<'_> {
         };
         let row = live.frame(frame, index, self.step, self.trial, truth);
         let state = live.state();
+        if let Some(msg) = live.gelsight_failure() {
+            self.progress.note(&format!("warning: {msg}"));
+            self.rec.update_manifest(|m| m.warnings.push(msg))?;
+        }
+        let Some(live) = self.tactile.as_mut() else {
+            return Ok(());
+        };
         if let Some(why) = live.new_failure() {
             // The block's remaining frames are recorded untracked, not retried one by one.
             let msg = format!("live tactile tracking stopped for this record block: {why}");

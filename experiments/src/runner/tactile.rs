@@ -28,11 +28,18 @@ pub(super) struct LiveTactile {
     failed: Option<String>,
     /// The failure was handed out.
     reported: bool,
+    /// The GelSight's force, when the protocol records it: the calibrated reader and the
+    /// matching of its markers to this block's reference (at the first tracked frame).
+    gelsight: Option<(crate::sensor::reader::Reader, Option<Vec<Option<usize>>>)>,
+    /// Why the GelSight's force cannot be read in this block, until handed out.
+    gelsight_error: Option<String>,
 }
 
 impl LiveTactile {
-    pub(super) fn new(mm_per_px: Option<f64>) -> Self {
+    pub(super) fn new(mm_per_px: Option<f64>, sensor: Option<&crate::sensor::SensorFile>) -> Self {
         Self {
+            gelsight: sensor.map(|s| (crate::sensor::reader::Reader::new(s), None)),
+            gelsight_error: None,
             pipeline: None,
             monitor: TactileMonitor::new(TactileParams::default()),
             last: None,
@@ -50,6 +57,43 @@ impl LiveTactile {
         }
         self.reported = self.failed.is_some();
         self.failed.as_deref()
+    }
+
+    /// Why the GelSight's force is not read in this block, once.
+    pub(super) fn gelsight_failure(&mut self) -> Option<String> {
+        self.gelsight_error.take()
+    }
+
+    /// The GelSight's wrench of this frame with the protocol's sensor file, if any.
+    fn gelsight_wrench(
+        &mut self,
+        field: &MarkerField,
+        contact: Option<([f64; 2], f64)>,
+        index: u64,
+    ) -> Option<Vec<f64>> {
+        let (reader, map) = self.gelsight.as_mut()?;
+        if map.is_none() {
+            match reader.layout.match_markers(&field.reference_px) {
+                Ok(m) => *map = Some(m),
+                Err(e) => {
+                    self.gelsight_error = Some(format!(
+                        "the GelSight's force is not read in this record block: {e}"
+                    ));
+                    self.gelsight = None;
+                    return None;
+                }
+            }
+        }
+        let map = map.as_ref()?;
+        let frame = crate::sensor::RunFrame {
+            frame: index,
+            t_ns: 0,
+            step: 0,
+            contact,
+            field: field.clone(),
+        };
+        let reading = reader.read(&frame, map, None);
+        Some(reader.model.predict(&reading.features).0)
     }
 
     /// The grip has closed (or re-closed): the next frame's field is the pressing field.
@@ -113,7 +157,15 @@ impl LiveTactile {
             self.monitor.set_pressing(&field, contact);
             self.pending_pressing = false;
         }
+        let region = pipeline.contact().map(|c| (c.centroid_px, c.radius_px));
         let t = self.monitor.update(&field, contact);
+        let gelsight = self.gelsight_wrench(&field, region, index);
+        let gw = |i: usize| {
+            gelsight
+                .as_ref()
+                .and_then(|w| w.get(i))
+                .map(|v| (v * 1e4).round() / 1e4)
+        };
         self.last = Some(t);
         let ms = started.elapsed().as_secs_f64() * 1e3;
         let g = truth.and_then(|t| t.grasp);
@@ -144,6 +196,10 @@ impl LiveTactile {
             true_sliding: g.map(|g| g.sliding),
             true_rotating: g.map(|g| g.rotating),
             true_on_table: g.map(|g| g.on_table),
+            gelsight_fx_n: gw(0),
+            gelsight_fy_n: gw(1),
+            gelsight_fz_n: gw(2),
+            gelsight_tz_nmm: gw(3),
         })
     }
 }

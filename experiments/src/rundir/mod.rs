@@ -14,7 +14,7 @@ use serde::Deserialize;
 #[derive(Debug, thiserror::Error)]
 pub enum RunDirError {
     /// The run directory lacks a table every report needs.
-    #[error("{path}: {detail}; fix: point gelrig report at a run directory made by `gelrig run`")]
+    #[error("{path}: {detail}; fix: give a run directory made by `gelrig run`")]
     Missing {
         /// The missing or unreadable file.
         path: PathBuf,

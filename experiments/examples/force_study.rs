@@ -73,7 +73,7 @@ fn cells(root: &Path, tmp: &Path) {
                 .expect("layout");
             for f in &frames {
                 let started = Instant::now();
-                let r = reader.read(f, &map, None);
+                let r = reader.read(&f.field, f.contact, &map);
                 std::hint::black_box(reader.model.predict(&r.features));
                 ms.push(started.elapsed().as_secs_f64() * 1e3);
             }
@@ -199,7 +199,7 @@ fn main() {
                     .iter()
                     .map(|f| {
                         let started = Instant::now();
-                        let r = reader.read(f, &map, None);
+                        let r = reader.read(&f.field, f.contact, &map);
                         std::hint::black_box(reader.model.predict(&r.features));
                         started.elapsed().as_secs_f64() * 1e3
                     })

@@ -73,6 +73,13 @@ fn calibrated_on_one_seed_the_field_reads_force_on_another_within_two_percent() 
                 .iter()
                 .any(|s| s == "GelSight force against the force sensor")
         );
+        // Inline code in the section's text is rendered, not shown as backticks.
+        let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
+        assert!(
+            html.contains("<code>portable.yaml</code>"),
+            "no inline code"
+        );
+        assert!(!html.contains("`portable.yaml`"));
     }
 }
 
@@ -332,6 +339,24 @@ fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
     assert!(
         (mean - nano).abs() < nano / 3.0,
         "GelSight {mean} N vs Nano17 {nano} N"
+    );
+    // The twist is far outside the flat-punch calibration: its readings say so with a wider
+    // uncertainty than the hold's.
+    let sd_median = |label: &str| {
+        let step = &steps.iter().find(|s| s["label"] == label).unwrap()["step"];
+        let mut v: Vec<f64> = rows
+            .iter()
+            .filter(|r| &r["step"] == step)
+            .map(|r| r["gelsight_fz_sd_n"].parse().unwrap())
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    assert!(
+        sd_median("twist") > 2.0 * sd_median("hold"),
+        "{} vs {}",
+        sd_median("twist"),
+        sd_median("hold")
     );
     // Refusals at validation.
     let missing = text.replace("gelsight_force: sensor.yaml", "gelsight_force: none.yaml");

@@ -123,6 +123,10 @@ pub(crate) fn run_virtual(
     cancel_after_s: Option<f64>,
 ) -> (RunOutcome, Plan) {
     let plan = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let Some(cancel_after_s) = cancel_after_s else {
+        let outcome = experiments::runner::run_virtual_blocking(loaded, out, seed).unwrap();
+        return (outcome, plan);
+    };
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .start_paused(true)
@@ -130,13 +134,11 @@ pub(crate) fn run_virtual(
         .unwrap();
     let cancel = Cancel::new();
     let outcome = rt.block_on(async {
-        if let Some(s) = cancel_after_s {
-            let c = cancel.clone();
-            tokio::spawn(async move {
-                tokio::time::sleep(std::time::Duration::from_secs_f64(s)).await;
-                c.interrupt();
-            });
-        }
+        let c = cancel.clone();
+        tokio::spawn(async move {
+            tokio::time::sleep(std::time::Duration::from_secs_f64(cancel_after_s)).await;
+            c.interrupt();
+        });
         run(
             RunRequest {
                 loaded,

@@ -216,4 +216,13 @@ pub struct TactileRow {
     pub gelsight_fz_n: Option<f64>,
     /// Its Tz, N·mm.
     pub gelsight_tz_nmm: Option<f64>,
+    /// Standard uncertainty of `gelsight_fx_n` (wide where the field is unlike the
+    /// calibration's), N.
+    pub gelsight_fx_sd_n: Option<f64>,
+    /// Of `gelsight_fy_n`, N.
+    pub gelsight_fy_sd_n: Option<f64>,
+    /// Of `gelsight_fz_n`, N.
+    pub gelsight_fz_sd_n: Option<f64>,
+    /// Of `gelsight_tz_nmm`, N·mm.
+    pub gelsight_tz_sd_nmm: Option<f64>,
 }

@@ -939,16 +939,22 @@ fn esc(s: &str) -> String {
         .replace('\'', "&#39;")
 }
 
-/// Minimal markdown → HTML for what the sections contain: tables, bold, paragraphs. The text
-/// is escaped first, so markup can only come from `**`.
+/// Minimal markdown → HTML for what the sections contain: tables, bold, inline code,
+/// paragraphs. The text is escaped first, so markup can only come from `**` and backticks.
 fn md_to_html(text: &str) -> String {
     let bold = |s: String| {
         let mut o = String::new();
-        for (i, part) in s.split("**").enumerate() {
+        for (i, code) in s.split('`').enumerate() {
             if i % 2 == 1 {
-                let _ = write!(o, "<b>{part}</b>");
-            } else {
-                o.push_str(part);
+                let _ = write!(o, "<code>{code}</code>");
+                continue;
+            }
+            for (j, part) in code.split("**").enumerate() {
+                if j % 2 == 1 {
+                    let _ = write!(o, "<b>{part}</b>");
+                } else {
+                    o.push_str(part);
+                }
             }
         }
         o

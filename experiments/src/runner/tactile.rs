@@ -69,8 +69,7 @@ impl LiveTactile {
         &mut self,
         field: &MarkerField,
         contact: Option<([f64; 2], f64)>,
-        index: u64,
-    ) -> Option<Vec<f64>> {
+    ) -> Option<(Vec<f64>, Vec<f64>)> {
         let (reader, map) = self.gelsight.as_mut()?;
         if map.is_none() {
             match reader.layout.match_markers(&field.reference_px) {
@@ -84,16 +83,8 @@ impl LiveTactile {
                 }
             }
         }
-        let map = map.as_ref()?;
-        let frame = crate::sensor::RunFrame {
-            frame: index,
-            t_ns: 0,
-            step: 0,
-            contact,
-            field: field.clone(),
-        };
-        let reading = reader.read(&frame, map, None);
-        Some(reader.model.predict(&reading.features).0)
+        let reading = reader.read(field, contact, map.as_ref()?);
+        Some(reader.model.predict(&reading.features))
     }
 
     /// The grip has closed (or re-closed): the next frame's field is the pressing field.
@@ -159,13 +150,14 @@ impl LiveTactile {
         }
         let region = pipeline.contact().map(|c| (c.centroid_px, c.radius_px));
         let t = self.monitor.update(&field, contact);
-        let gelsight = self.gelsight_wrench(&field, region, index);
-        let gw = |i: usize| {
+        let gelsight = self.gelsight_wrench(&field, region);
+        let pick = |sd: bool, i: usize| {
             gelsight
                 .as_ref()
-                .and_then(|w| w.get(i))
+                .and_then(|(v, s)| if sd { s.get(i) } else { v.get(i) })
                 .map(|v| (v * 1e4).round() / 1e4)
         };
+        let (gw, gs) = (|i| pick(false, i), |i| pick(true, i));
         self.last = Some(t);
         let ms = started.elapsed().as_secs_f64() * 1e3;
         let g = truth.and_then(|t| t.grasp);
@@ -200,6 +192,10 @@ impl LiveTactile {
             gelsight_fy_n: gw(1),
             gelsight_fz_n: gw(2),
             gelsight_tz_nmm: gw(3),
+            gelsight_fx_sd_n: gs(0),
+            gelsight_fy_sd_n: gs(1),
+            gelsight_fz_sd_n: gs(2),
+            gelsight_tz_sd_nmm: gs(3),
         })
     }
 }

@@ -13,6 +13,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use analysis::force_sensor::ridge::LinearModel;
+use analysis::force_sensor::traction::TractionKernel;
 use analysis::force_sensor::{CHANNELS, FEATURES, Layout, TRACTION_FEATURES};
 
 use super::file::{
@@ -200,10 +201,20 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
         Some(s) => vec![s],
         None => SUPPORTS.to_vec(),
     };
+    // The layer's kernels depend on the thickness, the cell and the view, not the support:
+    // built once for every support tried.
+    let base = TractionSettings {
+        thickness_mm: h,
+        kernel_dx_mm: (h / 8.0).min(opts.cell_mm / 2.0),
+        cell_mm: opts.cell_mm,
+        support: 1.0,
+        lambda: 0.0,
+    };
+    let kernel = super::reader::kernel_from_view(&gathered.view, &base);
     let mut best: Option<(f64, SensorFile)> = None;
     for support in supports {
-        let t = traction_settings(&gathered, h, opts.cell_mm, support);
-        let file = finish(&gathered, Some(t), first)?;
+        let t = traction_settings(&gathered, &kernel, TractionSettings { support, ..base });
+        let file = finish(&gathered, Some((&kernel, t)), first)?;
         let score: f64 = file.held_out.channels.values().map(|s| s.pct_range).sum();
         if best.as_ref().is_none_or(|(b, _)| score < *b) {
             best = Some((score, file));
@@ -226,13 +237,11 @@ struct Gathered {
 /// (field moments without).
 fn finish(
     g: &Gathered,
-    traction: Option<TractionSettings>,
+    traction: Option<(&TractionKernel, TractionSettings)>,
     first: &Path,
 ) -> Result<SensorFile, SensorError> {
     let (layout, view) = (&g.layout, &g.view);
-    let reader_kernel = traction
-        .as_ref()
-        .map(|t| (super::reader::kernel_from_view(view, t), *t));
+    let reader_kernel = traction;
     let per_run: Vec<RunSamples> = g
         .pending
         .iter()
@@ -296,29 +305,21 @@ fn finish(
             FEATURES.iter().map(|f| (*f).to_string()).collect()
         },
         model: SensorFile::model_file(&model),
-        traction,
+        traction: traction.map(|(_, t)| t),
         ranges,
         calibrated_on: per_run.into_iter().map(|r| r.reference).collect(),
         held_out,
     })
 }
 
-/// The traction map's settings: the kernel's cell an eighth of the thickness, and λ the
-/// median of GCV's choices on every fourth frame with a contact region.
+/// `t` with λ the median of GCV's choices on every fourth frame with a contact region (the
+/// kernel's cell is an eighth of the thickness, at most half the map's cell).
 fn traction_settings(
     g: &Gathered,
-    thickness_mm: f64,
-    cell_mm: f64,
-    support: f64,
+    kernel: &TractionKernel,
+    t: TractionSettings,
 ) -> TractionSettings {
-    let mut t = TractionSettings {
-        thickness_mm,
-        kernel_dx_mm: (thickness_mm / 8.0).min(cell_mm / 2.0),
-        cell_mm,
-        support,
-        lambda: 0.0,
-    };
-    let kernel = super::reader::kernel_from_view(&g.view, &t);
+    let mut t = t;
     let mut lambdas: Vec<f64> = g
         .pending
         .iter()
@@ -331,7 +332,7 @@ fn traction_settings(
         })
         .filter_map(|(f, map)| {
             let (u, _) = g.layout.displacements_mm(&f.field, map);
-            super::reader::traction_map(&g.layout, &kernel, &t, &u, f.contact, None)
+            super::reader::traction_map(&g.layout, kernel, &t, &u, f.contact, None)
                 .map(|m| m.lambda)
         })
         .collect();

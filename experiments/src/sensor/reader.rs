@@ -5,8 +5,8 @@ use analysis::force_sensor::Layout;
 use analysis::force_sensor::ridge::LinearModel;
 use analysis::force_sensor::traction::{self, TractionKernel, TractionMap};
 
-use super::RunFrame;
 use super::file::{METHOD_TRACTION, SensorFile, TractionSettings, View};
+use analysis::field::MarkerField;
 
 /// A calibrated sensor ready to read frames.
 pub struct Reader {
@@ -42,15 +42,15 @@ impl Reader {
         }
     }
 
-    /// Reads frame `f` (its markers matched to the layout by `map`); `lambda` overrides the
-    /// traction map's regularisation (`None` in calibration's first pass: GCV).
+    /// Reads one frame's `field` with its contact region (centroid, equivalent radius, px),
+    /// its markers matched to the layout by `map`.
     pub fn read(
         &self,
-        f: &RunFrame,
+        field: &MarkerField,
+        contact: Option<([f64; 2], f64)>,
         map: &[Option<usize>],
-        lambda: Option<Option<f64>>,
     ) -> Reading {
-        let (u, measured_share) = self.layout.displacements_mm(&f.field, map);
+        let (u, measured_share) = self.layout.displacements_mm(field, map);
         match &self.traction {
             None => Reading {
                 features: self.layout.features(&u).to_vec(),
@@ -58,14 +58,7 @@ impl Reader {
                 map: None,
             },
             Some((kernel, t)) => {
-                let tmap = traction_map(
-                    &self.layout,
-                    kernel,
-                    t,
-                    &u,
-                    f.contact,
-                    lambda.unwrap_or(Some(t.lambda)),
-                );
+                let tmap = traction_map(&self.layout, kernel, t, &u, contact, Some(t.lambda));
                 Reading {
                     features: tmap.as_ref().map_or(vec![0.0; 4], |m| m.wrench.to_vec()),
                     measured_share,

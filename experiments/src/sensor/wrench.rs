@@ -65,7 +65,7 @@ pub(crate) fn wrench_of_frames(
     Ok(frames
         .iter()
         .map(|f| {
-            let reading = reader.read(f, &map, None);
+            let reading = reader.read(&f.field, f.contact, &map);
             let share = reading.measured_share;
             let (v, sd) = reader.model.predict(&reading.features);
             let at = |x: &[f64], i: usize| x.get(i).copied().unwrap_or(f64::NAN);

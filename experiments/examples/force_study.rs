@@ -4,7 +4,9 @@
 //! calibration never saw — with the per-frame cost of the reading.
 //!
 //! ```text
-//! cargo run --release -p experiments --example force_study
+//! cargo run --release -p experiments --example force_study            # methods and shapes
+//! cargo run --release -p experiments --example force_study -- cells   # traction grid
+//! cargo run --release -p experiments --example force_study -- grasp   # dynamic, can trials
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -12,7 +14,7 @@ use std::time::Instant;
 
 use experiments::protocol::load;
 use experiments::runner::run_virtual_blocking;
-use experiments::sensor::calibrate::CalibrateOptions;
+use experiments::sensor::calibrate::{CalibrateOptions, Method};
 use experiments::sensor::reader::Reader;
 use experiments::sensor::{SensorFile, calibrate, load_frames};
 
@@ -43,7 +45,7 @@ fn cells(root: &Path, tmp: &Path) {
     println!("|---|---|---|---|---|---|");
     for cell_mm in [0.75, 1.0, 1.5, 2.0] {
         let opts = CalibrateOptions {
-            traction: true,
+            method: Method::Traction,
             cell_mm,
             support: None,
         };
@@ -90,12 +92,154 @@ fn cells(root: &Path, tmp: &Path) {
     }
 }
 
+/// `lifting-can` cut to `trials` trials, as a protocol file beside the shipped ones.
+fn can_protocol(root: &Path, trials: u32) -> PathBuf {
+    let text = std::fs::read_to_string(root.join("lifting-can.yaml")).expect("protocol");
+    let file = root.join(format!(".lifting-can-{trials}.yaml"));
+    std::fs::write(
+        &file,
+        text.replace("times: 10", &format!("times: {trials}")),
+    )
+    .expect("write");
+    file
+}
+
+/// Per channel and phase of the grasp, the RMSE of the GelSight against the Nano17 (at each
+/// frame's time, linearly interpolated) in % of the channel's peak |value| over the run.
+fn grasp_errors(sensor: &SensorFile, dir: &Path) -> Vec<(String, [f64; 4])> {
+    let rows = experiments::sensor::read_wrench(sensor, dir).expect("wrench");
+    #[derive(serde::Deserialize)]
+    struct F {
+        t_ns: u64,
+        fx_n: f64,
+        fy_n: f64,
+        fz_n: f64,
+        tz_nmm: f64,
+    }
+    #[derive(serde::Deserialize)]
+    struct S {
+        step: u32,
+        label: String,
+    }
+    let force: Vec<F> = csv::Reader::from_path(dir.join("force.csv"))
+        .expect("force.csv")
+        .deserialize()
+        .map(|r| r.expect("row"))
+        .collect();
+    let steps: Vec<S> = csv::Reader::from_path(dir.join("steps.csv"))
+        .expect("steps.csv")
+        .deserialize()
+        .map(|r| r.expect("row"))
+        .collect();
+    let at = |t: u64| -> [f64; 4] {
+        let i = force
+            .partition_point(|f| f.t_ns < t)
+            .clamp(1, force.len() - 1);
+        let (a, b) = (&force[i - 1], &force[i]);
+        let w =
+            ((t as f64 - a.t_ns as f64) / (b.t_ns as f64 - a.t_ns as f64).max(1.0)).clamp(0.0, 1.0);
+        let l = |x: f64, y: f64| x + w * (y - x);
+        [
+            l(a.fx_n, b.fx_n),
+            l(a.fy_n, b.fy_n),
+            l(a.fz_n, b.fz_n),
+            l(a.tz_nmm, b.tz_nmm),
+        ]
+    };
+    let pairs: Vec<(String, [f64; 4], [f64; 4])> = rows
+        .iter()
+        .filter_map(|r| {
+            let t = r.t_ns?;
+            let label = steps
+                .iter()
+                .find(|s| s.step == r.step)
+                .map_or_else(|| "grip".to_string(), |s| s.label.clone());
+            Some((label, [r.fx_n, r.fy_n, r.fz_n, r.tz_nmm], at(t)))
+        })
+        .collect();
+    let mut peak = [0.0f64; 4];
+    for (_, _, n) in &pairs {
+        for c in 0..4 {
+            peak[c] = peak[c].max(n[c].abs());
+        }
+    }
+    let mut labels: Vec<String> = vec!["all".into()];
+    for (l, _, _) in &pairs {
+        if !labels.contains(l) {
+            labels.push(l.clone());
+        }
+    }
+    labels
+        .into_iter()
+        .map(|l| {
+            let sel: Vec<&(String, [f64; 4], [f64; 4])> =
+                pairs.iter().filter(|p| l == "all" || p.0 == l).collect();
+            let mut out = [0.0; 4];
+            for c in 0..4 {
+                let mse = sel.iter().map(|p| (p.1[c] - p.2[c]).powi(2)).sum::<f64>()
+                    / sel.len().max(1) as f64;
+                out[c] = 100.0 * mse.sqrt() / peak[c].max(1e-9);
+            }
+            (l, out)
+        })
+        .collect()
+}
+
+/// The grasp read live from the field (thesis §6.3): sensors calibrated on seed-1 runs, read
+/// on three `lifting-can` trials of seed 2, with and without the gel's memory.
+fn grasp(root: &Path, tmp: &Path) {
+    let can_cal = can_protocol(root, 3);
+    let normal = dry_run(&root.join("portable-normal.yaml"), &tmp.join("cal"), 1);
+    let shear = dry_run(&root.join("portable-shear.yaml"), &tmp.join("cal"), 1);
+    let rotation = dry_run(&root.join("portable-rotation.yaml"), &tmp.join("cal"), 1);
+    let can1 = dry_run(&can_cal, &tmp.join("cal"), 1);
+    let can2 = dry_run(&can_cal, &tmp.join("test"), 2);
+    let _ = std::fs::remove_file(&can_cal);
+    let sensors: [(&str, Vec<PathBuf>); 2] = [
+        (
+            "indentation runs only (the can unseen)",
+            vec![normal.clone(), shear, rotation],
+        ),
+        (
+            "portable-normal + 3 can trials (in the jig)",
+            vec![normal, can1],
+        ),
+    ];
+    println!("| sensor calibrated on | method | memory | phase | Fx % | Fy % | Fz % | Tz % |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for (name, runs) in sensors {
+        for (method_name, method) in [("moments", Method::Moments), ("scale", Method::Scale)] {
+            let opts = CalibrateOptions {
+                method,
+                ..CalibrateOptions::default()
+            };
+            let sensor = calibrate(&runs, &opts).expect("calibrate");
+            if let Some(terms) = &sensor.relaxation {
+                eprintln!("{name}: relaxation {terms:?}");
+            }
+            let without = SensorFile {
+                relaxation: None,
+                ..sensor.clone()
+            };
+            for (memory, s) in [("yes", &sensor), ("no", &without)] {
+                for (phase, e) in grasp_errors(s, &can2) {
+                    println!(
+                        "| {name} | {method_name} | {memory} | {phase} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                        e[0], e[1], e[2], e[3]
+                    );
+                }
+            }
+        }
+    }
+}
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../protocols");
     let tmp = tempfile::tempdir().expect("tmp");
-    if std::env::args().nth(1).as_deref() == Some("cells") {
-        cells(&root, tmp.path());
-        return;
+    match std::env::args().nth(1).as_deref() {
+        Some("cells") => return cells(&root, tmp.path()),
+        Some("grasp") => return grasp(&root, tmp.path()),
+        _ => {}
     }
     let studies: [(&str, &[&str], &[&str]); 2] = [
         (
@@ -121,6 +265,7 @@ fn main() {
                 "box-shear-sphere",
                 "box-normal-ellipse",
                 "box-normal-rectangle",
+                "box-normal-triangle",
             ],
         ),
     ];
@@ -139,9 +284,7 @@ fn main() {
                 let mut file = root.join(format!("{p}.yaml"));
                 if *p == "lifting-can" {
                     // One trial of the grasp, the can's cylinder lying across the pad.
-                    let text = std::fs::read_to_string(&file).expect("protocol");
-                    file = root.join(".lifting-can-1.yaml");
-                    std::fs::write(&file, text.replace("times: 10", "times: 1")).expect("write");
+                    file = can_protocol(&root, 1);
                 }
                 let dir = dry_run(&file, &tmp.path().join("test"), 2);
                 if *p == "lifting-can" {
@@ -155,7 +298,14 @@ fn main() {
             (
                 "traction",
                 CalibrateOptions {
-                    traction: true,
+                    method: Method::Traction,
+                    ..CalibrateOptions::default()
+                },
+            ),
+            (
+                "scale",
+                CalibrateOptions {
+                    method: Method::Scale,
                     ..CalibrateOptions::default()
                 },
             ),

@@ -23,7 +23,9 @@
 //! (inverse-distance weights over the reference layout), so a marker lost at the contact's
 //! edge does not take its cell of the integral with it.
 
+pub mod memory;
 pub mod ridge;
+pub mod scale;
 pub mod traction;
 
 use crate::field::MarkerField;

@@ -46,6 +46,9 @@ use exec::Exec;
 /// track` reads a run directory's scale).
 /// The sensor file of `record.gelsight_force` (relative to the protocol), read before any
 /// step runs; a file that does not read stops the run there, naming why.
+/// Where a run keeps a copy of the sensor file it read the GelSight's force with.
+pub const GELSIGHT_SENSOR_FILE: &str = "gelsight_sensor.yaml";
+
 fn gelsight_sensor(loaded: &Loaded) -> Result<Option<crate::sensor::SensorFile>, String> {
     let Some(rel) = &loaded.protocol.record.gelsight_force else {
         return Ok(None);
@@ -273,8 +276,19 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
     exec.mm_per_px = image_scale(loaded, &exec.rig);
     let result = match (opened, gelsight_sensor(loaded)) {
         (Ok(()), Ok(sensor)) => {
+            // The sensor the run read with travels with the run (the protocol only names
+            // it, and the file may be recalibrated later).
+            let kept = match &sensor {
+                Some(s) => s
+                    .write(&exec.rec.dir().join(GELSIGHT_SENSOR_FILE))
+                    .map_err(|e| Stop::Sensor(e.to_string())),
+                None => Ok(()),
+            };
             exec.gelsight = sensor.map(std::sync::Arc::new);
-            exec.run_actions(&loaded.compiled.actions).await
+            match kept {
+                Ok(()) => exec.run_actions(&loaded.compiled.actions).await,
+                Err(e) => Err(e),
+            }
         }
         (Err(e), _) => Err(Stop::Record(e)),
         (_, Err(why)) => Err(Stop::Sensor(why)),

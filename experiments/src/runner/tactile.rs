@@ -31,6 +31,8 @@ pub(super) struct LiveTactile {
     /// The GelSight's force, when the protocol records it: the calibrated reader and the
     /// matching of its markers to this block's reference (at the first tracked frame).
     gelsight: Option<(crate::sensor::reader::Reader, Option<Vec<Option<usize>>>)>,
+    /// The gel's load history for the GelSight's Fz (sensors that know its relaxation).
+    gelsight_memory: Option<analysis::force_sensor::memory::Memory>,
     /// Why the GelSight's force cannot be read in this block, until handed out.
     gelsight_error: Option<String>,
 }
@@ -39,6 +41,7 @@ impl LiveTactile {
     pub(super) fn new(mm_per_px: Option<f64>, sensor: Option<&crate::sensor::SensorFile>) -> Self {
         Self {
             gelsight: sensor.map(|s| (crate::sensor::reader::Reader::new(s), None)),
+            gelsight_memory: None,
             gelsight_error: None,
             pipeline: None,
             monitor: TactileMonitor::new(TactileParams::default()),
@@ -69,6 +72,7 @@ impl LiveTactile {
         &mut self,
         field: &MarkerField,
         contact: Option<([f64; 2], f64)>,
+        t_ns: u64,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
         let (reader, map) = self.gelsight.as_mut()?;
         if map.is_none() {
@@ -84,7 +88,17 @@ impl LiveTactile {
             }
         }
         let reading = reader.read(field, contact, map.as_ref()?);
-        Some(reader.model.predict(&reading.features))
+        let (mut v, sd) = reader.model.predict(&reading.features);
+        if self.gelsight_memory.is_none() {
+            self.gelsight_memory = reader.memory();
+        }
+        if let (Some(m), Some(fz)) = (self.gelsight_memory.as_mut(), v.get_mut(2)) {
+            *fz = match contact {
+                Some(_) => m.apply(t_ns, *fz),
+                None => m.release(t_ns, *fz),
+            };
+        }
+        Some((v, sd))
     }
 
     /// The grip has closed (or re-closed): the next frame's field is the pressing field.
@@ -150,7 +164,7 @@ impl LiveTactile {
         }
         let region = pipeline.contact().map(|c| (c.centroid_px, c.radius_px));
         let t = self.monitor.update(&field, contact);
-        let gelsight = self.gelsight_wrench(&field, region);
+        let gelsight = self.gelsight_wrench(&field, region, frame.t_ns);
         let pick = |sd: bool, i: usize| {
             gelsight
                 .as_ref()

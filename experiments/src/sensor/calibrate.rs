@@ -13,15 +13,17 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use analysis::force_sensor::ridge::LinearModel;
+use analysis::force_sensor::scale::{SCALE_FEATURES, ScaleBasis};
 use analysis::force_sensor::traction::TractionKernel;
 use analysis::force_sensor::{CHANNELS, FEATURES, Layout, TRACTION_FEATURES};
 
 use super::file::{
-    ErrorStats, FORMAT, HeldOut, LayoutFile, METHOD, METHOD_TRACTION, RunRef, TractionSettings,
-    VERSION, View,
+    ErrorStats, FORMAT, HeldOut, LayoutFile, METHOD, METHOD_SCALE, METHOD_TRACTION, RelaxationTerm,
+    RunRef, ScaleSettings, TractionSettings, VERSION, View,
 };
 use super::{SensorError, SensorFile, reference_at, run_frames, run_mm_per_px, unfit};
-use crate::rundir::read_run;
+use crate::rundir::{ForceRow, StepRow, read_run};
+use analysis::force_sensor::memory::{self, HeldStep};
 
 /// One calibration frame.
 #[derive(Debug, Clone)]
@@ -36,11 +38,22 @@ struct RunSamples {
     samples: Vec<Sample>,
 }
 
+/// What a sensor reads the field by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Field moments ([`analysis::force_sensor`]).
+    Moments,
+    /// The inverse traction map's integrals ([`analysis::force_sensor::traction`]).
+    Traction,
+    /// The thesis's scale fit of reference fields ([`analysis::force_sensor::scale`]).
+    Scale,
+}
+
 /// How to calibrate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CalibrateOptions {
-    /// Field moments (`false`) or the traction map's integrals (`true`).
-    pub traction: bool,
+    /// What the field is read by.
+    pub method: Method,
     /// The traction map's cell, mm.
     pub cell_mm: f64,
     /// The traction map's support, in contact radii; `None`: the one of [`SUPPORTS`] with
@@ -55,7 +68,7 @@ pub const SUPPORTS: [f64; 4] = [1.1, 1.2, 1.3, 1.5];
 impl Default for CalibrateOptions {
     fn default() -> Self {
         Self {
-            traction: false,
+            method: Method::Moments,
             cell_mm: 1.0,
             support: None,
         }
@@ -67,6 +80,77 @@ impl Default for CalibrateOptions {
 struct Pending {
     map: Vec<Option<usize>>,
     frames: Vec<(super::RunFrame, [f64; 4])>,
+    /// The run's force record and steps, for the elastic force's targets.
+    force: Vec<ForceRow>,
+    steps: Vec<StepRow>,
+}
+
+/// Axes that press the gel: their held steps show its relaxation.
+const PRESSING_AXES: [&str; 2] = ["normal", "grip"];
+
+/// The held steps of the pressing axis in `data`, with the force while each held.
+fn held_steps(data: &crate::rundir::RunData) -> Vec<HeldStep> {
+    data.steps
+        .iter()
+        .filter(|s| PRESSING_AXES.contains(&s.axis.as_str()) && s.settle_s >= 10.0)
+        .filter_map(|s| {
+            let settle_ns = (s.settle_s * 1e9) as u64;
+            let move_end = s.settle_end_ns.checked_sub(settle_ns)?;
+            let change_ns = s.t_start_ns + move_end.saturating_sub(s.t_start_ns) / 2;
+            let (t_s, f): (Vec<f64>, Vec<f64>) = data
+                .force
+                .iter()
+                .filter(|r| r.t_ns >= move_end && r.t_ns <= s.settle_end_ns)
+                .map(|r| (r.t_ns as f64 * 1e-9, r.fz_n))
+                .unzip();
+            Some(HeldStep {
+                change_s: change_ns as f64 * 1e-9,
+                t_s,
+                f,
+            })
+        })
+        .collect()
+}
+
+/// The elastic force behind each run's Fz ([`memory::elastic_of`]), and the frames' targets
+/// with it in place of the force sensor's Fz.
+fn to_elastic(pending: &mut [Pending], prony: &mechanics::Prony) {
+    for p in pending {
+        let t: Vec<u64> = p.force.iter().map(|r| r.t_ns).collect();
+        let fz: Vec<f64> = p.force.iter().map(|r| r.fz_n).collect();
+        let fe = memory::elastic_of(prony, &t, &fz);
+        let force: Vec<ForceRow> = p
+            .force
+            .iter()
+            .zip(&fe)
+            .map(|(r, &fz_n)| ForceRow { fz_n, ..*r })
+            .collect();
+        let steps: Vec<StepRow> = p
+            .steps
+            .iter()
+            .map(|s| {
+                let from = s
+                    .settle_end_ns
+                    .saturating_sub((s.force_window_s * 1e9) as u64);
+                let window: Vec<f64> = force
+                    .iter()
+                    .filter(|r| r.t_ns >= from && r.t_ns <= s.settle_end_ns)
+                    .map(|r| r.fz_n)
+                    .collect();
+                let fz_n = if window.is_empty() {
+                    s.fz_n
+                } else {
+                    window.iter().sum::<f64>() / window.len() as f64
+                };
+                StepRow { fz_n, ..s.clone() }
+            })
+            .collect();
+        for (f, w) in &mut p.frames {
+            if let Some(e) = super::reference_in(&force, &steps, f.step, f.t_ns) {
+                w[2] = e[2];
+            }
+        }
+    }
 }
 
 /// Fits a sensor on `runs` (run directories; their frames are tracked first if they have
@@ -82,7 +166,8 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
     let mut layout: Option<(Layout, View, String)> = None;
     let mut refs = Vec::new();
     let mut pending = Vec::new();
-    let mut thickness_mm = None;
+    let mut spec: Option<rig::sim::PlantSpec> = None;
+    let mut held = Vec::new();
     for dir in runs {
         let data = read_run(dir)?;
         let loaded = crate::protocol::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml")))
@@ -154,10 +239,8 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
                 path: dir.clone(),
                 source,
             })?;
-        if thickness_mm.is_none() {
-            thickness_mm = crate::protocol::plant_spec(&loaded.protocol, &loaded.compiled)
-                .ok()
-                .map(|s| s.contact.layer.thickness_mm);
+        if spec.is_none() {
+            spec = crate::protocol::plant_spec(&loaded.protocol, &loaded.compiled).ok();
         }
         let frames: Vec<(super::RunFrame, [f64; 4])> = frames
             .into_iter()
@@ -175,22 +258,54 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
             indenter: serde_json::to_string(&loaded.protocol.indenter).unwrap_or_default(),
             frames: frames.len(),
         });
-        pending.push(Pending { map, frames });
+        held.push(held_steps(&data));
+        pending.push(Pending {
+            map,
+            frames,
+            force: data.force,
+            steps: data.steps,
+        });
     }
     let Some((layout, view, sensor)) = layout else {
         return Err(unfit(first, "no runs read", "name run directories"));
     };
+    let relaxation = memory::fit_relaxation_runs(&held);
+    if let Some(prony) = &relaxation {
+        to_elastic(&mut pending, prony);
+    }
     let gathered = Gathered {
+        relaxation,
         layout,
         view,
         sensor,
         refs,
         pending,
     };
-    if !opts.traction {
-        return finish(&gathered, None, first);
+    let how_unknown = || {
+        unfit(
+            first,
+            "the elastomer and indenter are unknown",
+            "calibrate on runs made by `gelrig run` (their protocol gives the sensor)",
+        )
+    };
+    match opts.method {
+        Method::Moments => return finish(&gathered, &How::Moments, first),
+        Method::Scale => {
+            let spec = spec.as_ref().ok_or_else(how_unknown)?;
+            let settings = super::scale::reference_fields(spec, &gathered.layout)
+                .map_err(|e| unfit(first, e, "calibrate with --method moments"))?;
+            let basis = super::scale::basis(&settings, &gathered.layout).ok_or_else(|| {
+                unfit(
+                    first,
+                    "the reference fields cannot be told apart at these markers",
+                    "calibrate with --method moments",
+                )
+            })?;
+            return finish(&gathered, &How::Scale(&basis, &settings), first);
+        }
+        Method::Traction => {}
     }
-    let Some(h) = thickness_mm else {
+    let Some(h) = spec.as_ref().map(|s| s.contact.layer.thickness_mm) else {
         return Err(unfit(
             first,
             "the elastomer's thickness is unknown",
@@ -214,7 +329,7 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
     let mut best: Option<(f64, SensorFile)> = None;
     for support in supports {
         let t = traction_settings(&gathered, &kernel, TractionSettings { support, ..base });
-        let file = finish(&gathered, Some((&kernel, t)), first)?;
+        let file = finish(&gathered, &How::Traction(&kernel, t), first)?;
         let score: f64 = file.held_out.channels.values().map(|s| s.pct_range).sum();
         if best.as_ref().is_none_or(|(b, _)| score < *b) {
             best = Some((score, file));
@@ -226,6 +341,8 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
 
 /// What calibration read from the runs, before features.
 struct Gathered {
+    /// The gel's relaxation, where the runs' held pressing steps show it.
+    relaxation: Option<mechanics::Prony>,
     layout: Layout,
     view: View,
     sensor: String,
@@ -233,15 +350,16 @@ struct Gathered {
     pending: Vec<Pending>,
 }
 
-/// Features, fit and held-out error of `g`, with the traction map's settings `traction`
-/// (field moments without).
-fn finish(
-    g: &Gathered,
-    traction: Option<(&TractionKernel, TractionSettings)>,
-    first: &Path,
-) -> Result<SensorFile, SensorError> {
+/// What the features are.
+enum How<'a> {
+    Moments,
+    Traction(&'a TractionKernel, TractionSettings),
+    Scale(&'a ScaleBasis, &'a ScaleSettings),
+}
+
+/// Features, fit and held-out error of `g` read `how`.
+fn finish(g: &Gathered, how: &How<'_>, first: &Path) -> Result<SensorFile, SensorError> {
     let (layout, view) = (&g.layout, &g.view);
-    let reader_kernel = traction;
     let per_run: Vec<RunSamples> = g
         .pending
         .iter()
@@ -253,9 +371,10 @@ fn finish(
                 .iter()
                 .map(|(f, w)| {
                     let (u, _) = layout.displacements_mm(&f.field, &p.map);
-                    let features = match &reader_kernel {
-                        None => layout.features(&u).to_vec(),
-                        Some((kernel, t)) => super::reader::traction_map(
+                    let features = match how {
+                        How::Moments => layout.features(&u).to_vec(),
+                        How::Scale(basis, _) => basis.features(&u),
+                        How::Traction(kernel, t) => super::reader::traction_map(
                             layout,
                             kernel,
                             t,
@@ -293,19 +412,38 @@ fn finish(
             centre_px: layout.centre_px,
             reference_px: layout.reference_px.clone(),
         },
-        method: if traction.is_some() {
-            METHOD_TRACTION
-        } else {
-            METHOD
+        method: match how {
+            How::Moments => METHOD,
+            How::Traction(..) => METHOD_TRACTION,
+            How::Scale(..) => METHOD_SCALE,
         }
         .into(),
-        features: if traction.is_some() {
-            TRACTION_FEATURES.iter().map(|f| (*f).to_string()).collect()
-        } else {
-            FEATURES.iter().map(|f| (*f).to_string()).collect()
-        },
+        features: match how {
+            How::Moments => &FEATURES[..],
+            How::Traction(..) => &TRACTION_FEATURES[..],
+            How::Scale(..) => &SCALE_FEATURES[..],
+        }
+        .iter()
+        .map(|f| (*f).to_string())
+        .collect(),
         model: SensorFile::model_file(&model),
-        traction: traction.map(|(_, t)| t),
+        traction: match how {
+            How::Traction(_, t) => Some(*t),
+            _ => None,
+        },
+        scale: match how {
+            How::Scale(_, s) => Some((*s).clone()),
+            _ => None,
+        },
+        relaxation: g.relaxation.as_ref().map(|p| {
+            p.terms()
+                .iter()
+                .map(|t| RelaxationTerm {
+                    weight: t.weight,
+                    tau_s: t.tau_s,
+                })
+                .collect()
+        }),
         ranges,
         calibrated_on: per_run.into_iter().map(|r| r.reference).collect(),
         held_out,

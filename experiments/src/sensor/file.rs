@@ -7,18 +7,24 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use analysis::force_sensor::ridge::{ChannelFit, LinearModel};
+use analysis::force_sensor::scale::SCALE_FEATURES;
 use analysis::force_sensor::{CHANNELS, FEATURES, Layout, TRACTION_FEATURES};
 use serde::{Deserialize, Serialize};
 
+pub use super::scale::ScaleSettings;
+
 /// What every sensor file says it is.
 pub const FORMAT: &str = "gelrig-sensor";
-/// The newest version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The newest version this build writes and reads (2 added `relaxation`).
+pub const VERSION: u32 = 2;
 /// Field moments, ridge per channel ([`analysis::force_sensor`]).
 pub const METHOD: &str = "field-moments-ridge";
 /// The inverse traction map's integrals, ridge per channel
 /// ([`analysis::force_sensor::traction`]).
 pub const METHOD_TRACTION: &str = "traction-map";
+/// The thesis's scale fit of reference fields, superposed for combined loads, ridge per
+/// channel ([`analysis::force_sensor::scale`]).
+pub const METHOD_SCALE: &str = "scale-fit";
 
 /// Why a sensor file could not be read or written.
 #[derive(Debug, thiserror::Error)]
@@ -68,6 +74,15 @@ pub struct SensorFile {
     /// The traction map's settings (`traction-map` only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub traction: Option<TractionSettings>,
+    /// The scale fit's reference fields (`scale-fit` only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<ScaleSettings>,
+    /// The gel's relaxation function g(t) = 1 + Σ wᵢ e^{−t/τᵢ}, fitted from the calibration
+    /// runs' held pressing steps: the pressing field reads the elastic force, and Fz is its
+    /// hereditary integral ([`analysis::force_sensor::memory`]). Absent: Fz is read as the
+    /// field's force, with no memory.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub relaxation: Option<Vec<RelaxationTerm>>,
     /// Per channel, the range of the calibration's force sensor readings.
     pub ranges: BTreeMap<String, [f64; 2]>,
     /// The runs it was calibrated on.
@@ -86,6 +101,16 @@ pub struct View {
     pub width_px: usize,
     /// Frame height, px.
     pub height_px: usize,
+}
+
+/// One term of the gel's relaxation function.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RelaxationTerm {
+    /// Modulus of the term relative to the long-term modulus.
+    pub weight: f64,
+    /// Time constant, s.
+    pub tau_s: f64,
 }
 
 /// How the traction map is solved.
@@ -191,6 +216,21 @@ impl SensorFile {
             self.view.mm_per_px,
             self.layout.centre_px,
         )
+    }
+
+    /// The gel's relaxation function, if the calibration fitted one.
+    pub fn prony(&self) -> Option<mechanics::Prony> {
+        let terms = self.relaxation.as_ref()?;
+        mechanics::Prony::new(
+            terms
+                .iter()
+                .map(|t| mechanics::PronyTerm {
+                    weight: t.weight,
+                    tau_s: t.tau_s,
+                })
+                .collect(),
+        )
+        .ok()
     }
 
     /// The model as the analysis crate uses it.
@@ -302,9 +342,11 @@ impl SensorFile {
         let (features, p): (&[&str], usize) = match self.method.as_str() {
             METHOD => (&FEATURES, FEATURES.len()),
             METHOD_TRACTION => (&TRACTION_FEATURES, TRACTION_FEATURES.len()),
+            METHOD_SCALE => (&SCALE_FEATURES, SCALE_FEATURES.len()),
             m => {
                 return Err(format!(
-                    "method {m:?}: this gelrig knows {METHOD:?} and {METHOD_TRACTION:?}"
+                    "method {m:?}: this gelrig knows {METHOD:?}, {METHOD_TRACTION:?} and \
+                     {METHOD_SCALE:?}"
                 ));
             }
         };
@@ -328,6 +370,31 @@ impl SensorFile {
             }
             (Some(_), _) => return Err("`traction` belongs to a traction-map sensor only".into()),
             (None, _) => {}
+        }
+        match (&self.scale, self.method.as_str()) {
+            (None, METHOD_SCALE) => return Err("a scale-fit sensor needs `scale`".into()),
+            (Some(sc), METHOD_SCALE) => {
+                let n = self.layout.reference_px.len();
+                if sc.fields.len() != 4
+                    || sc.fields.iter().any(|f| f.len() != n)
+                    || !(sc.contact_radius_mm.is_finite() && sc.contact_radius_mm > 0.0)
+                    || super::scale::basis(sc, &self.layout()).is_none()
+                {
+                    return Err(format!(
+                        "scale: needs 4 distinct fields of {n} markers each and a positive contact \
+                         radius"
+                    ));
+                }
+            }
+            (Some(_), _) => return Err("`scale` belongs to a scale-fit sensor only".into()),
+            (None, _) => {}
+        }
+        if let Some(terms) = &self.relaxation
+            && !terms.iter().all(|t| {
+                t.weight.is_finite() && t.weight >= 0.0 && t.tau_s.is_finite() && t.tau_s > 0.0
+            })
+        {
+            return Err("relaxation: each term needs weight ≥ 0 and tau_s > 0".into());
         }
         if self.model.mean.len() != p || self.model.scale.len() != p {
             return Err(format!("model.mean and model.scale need {p} values"));

@@ -159,6 +159,15 @@ pub fn write_maps(
         l.sort_by(f64::total_cmp);
         t.lambda = l.get(l.len() / 2).copied().unwrap_or(0.0);
     }
+    // Calibrated: the wrench as wrench.csv reads it, the gel's memory in its Fz (the map
+    // itself is the traction that explains the field, the elastic one).
+    let read: std::collections::BTreeMap<u64, [f64; 4]> = match source {
+        MapSource::Sensor(file) => super::wrench::wrench_of_frames(file, frames, dir)?
+            .into_iter()
+            .map(|r| (r.frame, [r.fx_n, r.fy_n, r.fz_n, r.tz_nmm]))
+            .collect(),
+        MapSource::Nominal { .. } => Default::default(),
+    };
     let mut rows = Vec::new();
     let mut csv = csv::Writer::from_path(dir.join("traction.csv"))
         .map_err(|e| werr(dir.join("traction.csv"), e.to_string()))?;
@@ -169,9 +178,10 @@ pub fn write_maps(
         };
         // Calibrated: the sensor's reading of these integrals (as in wrench.csv); nominal:
         // the integrals themselves.
-        let w: Vec<f64> = match &model {
-            Some(model) => model.predict(&m.wrench).0,
-            None => m.wrench.to_vec(),
+        let w: Vec<f64> = match (&model, read.get(&f.frame)) {
+            (Some(_), Some(r)) => r.to_vec(),
+            (Some(model), None) => model.predict(&m.wrench).0,
+            (None, _) => m.wrench.to_vec(),
         };
         let row = TractionRow {
             frame: f.frame,

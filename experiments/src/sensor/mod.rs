@@ -7,6 +7,7 @@ pub mod calibrate;
 pub mod file;
 pub mod maps;
 pub mod reader;
+pub mod scale;
 pub mod wrench;
 
 use std::path::{Path, PathBuf};
@@ -104,7 +105,18 @@ pub(crate) fn contact_of(
 /// force-window mean (the quasistatic value the frame shows, with a tenth of a single
 /// sample's noise over a 10 s window); else [`wrench_at`].
 pub(crate) fn reference_at(data: &RunData, step: u32, t_ns: u64) -> Option<[f64; 4]> {
-    let captured = data.steps.iter().find(|s| {
+    reference_in(&data.force, &data.steps, step, t_ns)
+}
+
+/// [`reference_at`] over a force record and step table of one's own (the calibration's
+/// elastic force).
+pub(crate) fn reference_in(
+    force: &[ForceRow],
+    steps: &[crate::rundir::StepRow],
+    step: u32,
+    t_ns: u64,
+) -> Option<[f64; 4]> {
+    let captured = steps.iter().find(|s| {
         s.step == step
             && step > 0
             && s.force_window_s > 0.0
@@ -112,7 +124,7 @@ pub(crate) fn reference_at(data: &RunData, step: u32, t_ns: u64) -> Option<[f64;
     });
     match captured {
         Some(s) => Some([s.fx_n, s.fy_n, s.fz_n, s.tz_nmm]),
-        None => wrench_at(&data.force, t_ns),
+        None => wrench_at(force, t_ns),
     }
 }
 

@@ -2,11 +2,13 @@
 //! method the layer's kernels (computed once per sensor, a few milliseconds).
 
 use analysis::force_sensor::Layout;
+use analysis::force_sensor::memory::Memory;
 use analysis::force_sensor::ridge::LinearModel;
 use analysis::force_sensor::traction::{self, TractionKernel, TractionMap};
 
-use super::file::{METHOD_TRACTION, SensorFile, TractionSettings, View};
+use super::file::{METHOD_SCALE, METHOD_TRACTION, SensorFile, TractionSettings, View};
 use analysis::field::MarkerField;
+use analysis::force_sensor::scale::ScaleBasis;
 
 /// A calibrated sensor ready to read frames.
 pub struct Reader {
@@ -15,6 +17,8 @@ pub struct Reader {
     /// The per-channel model.
     pub model: LinearModel,
     traction: Option<(TractionKernel, TractionSettings)>,
+    scale: Option<ScaleBasis>,
+    prony: Option<mechanics::Prony>,
 }
 
 /// One frame read: the model's features, the share of markers measured, and the traction
@@ -35,11 +39,26 @@ impl Reader {
             .then_some(file.traction)
             .flatten()
             .map(|t| (kernel_for(file, &t), t));
+        let layout = file.layout();
+        // A sensor file's check has built this basis once: it is there for a scale fit.
+        let scale = (file.method == METHOD_SCALE)
+            .then_some(file.scale.as_ref())
+            .flatten()
+            .and_then(|s| super::scale::basis(s, &layout));
         Self {
-            layout: file.layout(),
+            layout,
             model: file.model(),
             traction,
+            scale,
+            prony: file.prony(),
         }
+    }
+
+    /// A fresh memory of the gel's load history for a recording, when the sensor knows the
+    /// gel's relaxation: its Fz is then the hereditary integral of the field's elastic force
+    /// ([`analysis::force_sensor::memory`]), read frame by frame in time order.
+    pub fn memory(&self) -> Option<Memory> {
+        self.prony.clone().map(Memory::new)
     }
 
     /// Reads one frame's `field` with its contact region (centroid, equivalent radius, px),
@@ -51,6 +70,13 @@ impl Reader {
         map: &[Option<usize>],
     ) -> Reading {
         let (u, measured_share) = self.layout.displacements_mm(field, map);
+        if let Some(basis) = &self.scale {
+            return Reading {
+                features: basis.features(&u),
+                measured_share,
+                map: None,
+            };
+        }
         match &self.traction {
             None => Reading {
                 features: self.layout.features(&u).to_vec(),

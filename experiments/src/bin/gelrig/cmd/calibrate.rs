@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use experiments::sensor::calibrate::CalibrateOptions;
+use experiments::sensor::calibrate::{CalibrateOptions, Method};
 use experiments::sensor::{SensorError, calibrate};
 
 /// Learn the GelSight's map from marker field to force and torque on runs with frames and a
@@ -16,9 +16,11 @@ pub(crate) struct Cmd {
     /// The sensor file to write.
     #[arg(long, value_name = "SENSOR.yaml")]
     out: PathBuf,
-    /// How the field becomes a wrench: `moments` (field moments, 2 µs a frame) or
-    /// `traction` (the inverse traction map on the contact, milliseconds a frame).
-    #[arg(long, default_value = "moments", value_parser = ["moments", "traction"])]
+    /// How the field becomes a wrench: `moments` (field moments, 2 µs a frame),
+    /// `traction` (the inverse traction map on the contact, milliseconds a frame) or `scale`
+    /// (the thesis's fit of the calibration contact's reference fields, superposed for
+    /// combined loads).
+    #[arg(long, default_value = "moments", value_parser = ["moments", "traction", "scale"])]
     method: String,
     /// The traction map's cell, mm.
     #[arg(long, value_name = "MM", default_value_t = 1.0)]
@@ -42,7 +44,11 @@ impl Cmd {
             return Ok(ExitCode::from(super::EXIT_INVALID));
         }
         let opts = CalibrateOptions {
-            traction: self.method == "traction",
+            method: match self.method.as_str() {
+                "traction" => Method::Traction,
+                "scale" => Method::Scale,
+                _ => Method::Moments,
+            },
             cell_mm: self.cell_mm,
             support: self.support,
         };
@@ -68,6 +74,19 @@ impl Cmd {
                 s.pct_range,
                 s.bias
             );
+        }
+        match &sensor.relaxation {
+            Some(terms) => out!(
+                "gel relaxation (Fz read with its memory): g(t) = 1{}",
+                terms
+                    .iter()
+                    .map(|t| format!(" + {:.3}·e^(−t/{:.1} s)", t.weight, t.tau_s))
+                    .collect::<String>()
+            ),
+            None => out!(
+                "gel relaxation: not fitted (no held pressing steps of 10 s or more): Fz is read \
+                 from the field alone"
+            ),
         }
         out!("wrote {}", self.out.display());
         Ok(ExitCode::SUCCESS)

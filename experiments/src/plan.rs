@@ -34,9 +34,17 @@ pub const JOURNAL_LINE_BYTES: u64 = 160;
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct Range {
     /// Lower bound.
+    #[serde(serialize_with = "without_noise")]
     pub min: f64,
     /// Upper bound.
+    #[serde(serialize_with = "without_noise")]
     pub max: f64,
+}
+
+/// Serialises a number rounded to 1 ms of run time (or 12 significant digits), so `plan
+/// --json` carries no float noise.
+fn without_noise<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(round_noise((v * 1e3).round() / 1e3))
 }
 
 impl Range {
@@ -78,6 +86,10 @@ pub struct PlannedStep {
     pub axis: Option<AxisRole>,
     /// Target as text, e.g. `0.084 mm` or `by -5 mm`.
     pub target: String,
+    /// The target as a number (relative for `by` moves), in `target_unit`.
+    pub target_value: Option<f64>,
+    /// The target's unit (`mm` or `deg`).
+    pub target_unit: Option<String>,
     /// Settle as text.
     pub settle: String,
     /// Frames captured.
@@ -292,6 +304,11 @@ pub fn plan(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> Plan {
                         }
                         _ => String::new(),
                     },
+                    target_value: match s.target {
+                        Some(Target::To(v) | Target::By(v)) => Some(round_noise(v)),
+                        None => None,
+                    },
+                    target_unit: s.unit.map(|u| u.symbol().to_string()),
                     settle: settle_text(&s.settle),
                     frames: s.frames,
                     ends_s: t.add(d),
@@ -356,6 +373,15 @@ pub fn plan(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> Plan {
     }
 }
 
+/// `v` without float noise (`0.30000000000000004` → 0.3): 12 significant digits.
+fn round_noise(v: f64) -> f64 {
+    if v == 0.0 || !v.is_finite() {
+        return v;
+    }
+    let scale = 10f64.powi(11 - v.abs().log10().floor() as i32);
+    (v * scale).round() / scale
+}
+
 fn settle_text(s: &SettleSpec) -> String {
     match s {
         SettleSpec::None => "-".into(),
@@ -367,9 +393,10 @@ fn settle_text(s: &SettleSpec) -> String {
             max_s,
             ..
         } => format!(
-            "|d{}/dt|<{} for {}–{} s",
-            channel.name(),
+            "|d{}/dt| < {} {} for {}–{} s",
+            channel.label(),
             rig::units::fmt_value(*below),
+            channel.rate_unit(),
             rig::units::fmt_value(*min_s),
             rig::units::fmt_value(*max_s)
         ),

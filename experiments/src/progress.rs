@@ -36,6 +36,8 @@ pub struct Progress {
     done: std::sync::atomic::AtomicU32,
     /// The grasp's tactile state while frames are tracked live (e.g. `slip: stick`).
     tactile: Mutex<Option<String>>,
+    /// The trial under way in a repeated block, and how many there are.
+    trial: Mutex<Option<(u32, u32)>>,
 }
 
 impl Progress {
@@ -71,7 +73,26 @@ impl Progress {
             last_tick: Mutex::new(Instant::now()),
             done: std::sync::atomic::AtomicU32::new(0),
             tactile: Mutex::new(None),
+            trial: Mutex::new(None),
         }
+    }
+
+    /// A repeated block's trial `trial` of `of` begins: the line and the step lines say so.
+    pub fn set_trial(&self, trial: u32, of: u32) {
+        *self
+            .trial
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) =
+            (trial > 0).then_some((trial, of));
+    }
+
+    /// `trial k/n · ` while a repeated block runs.
+    fn trial_text(&self) -> String {
+        self.trial
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .map(|(k, n)| format!("trial {k}/{n} · "))
+            .unwrap_or_default()
     }
 
     fn clock_text(&self, t_s: f64) -> String {
@@ -115,7 +136,8 @@ impl Progress {
                 .map(|t| format!(" · {t}"))
                 .unwrap_or_default();
             pb.set_message(format!(
-                "{label}: {what} · {phase}{tactile} · {}",
+                "{}{label}: {what} · {phase}{tactile} · {}",
+                self.trial_text(),
                 self.clock_text(t_s)
             ));
         }
@@ -151,7 +173,11 @@ impl Progress {
 
     /// A step is done; `line` summarises it.
     pub fn step_done(&self, step: u32, line: &str) {
-        let text = format!("step {step}/{}: {line}", self.total_steps);
+        let text = format!(
+            "{}step {step}/{}: {line}",
+            self.trial_text(),
+            self.total_steps
+        );
         self.done
             .fetch_max(step, std::sync::atomic::Ordering::Relaxed);
         if let Some(pb) = &self.bar {

@@ -19,6 +19,12 @@ pub struct RunSummary {
     pub steps: String,
     /// Abort reason or error.
     pub note: String,
+    /// Wall time from start to end, s (`None` while running or when unknown).
+    pub duration_s: Option<f64>,
+    /// The seed of its simulated devices.
+    pub seed: Option<u64>,
+    /// The rig: its name, and `simulated` when every device that ran was.
+    pub rig: String,
 }
 
 /// The status a manifest and its lock imply: a `running` manifest whose lock no process
@@ -43,14 +49,36 @@ pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
     Ok(dirs
         .into_iter()
         .map(|dir| match read_manifest(&dir) {
-            Ok(m) => RunSummary {
-                status: effective_status(&dir, m.status).to_string(),
-                protocol: m.protocol,
-                started: m.started_utc,
-                steps: format!("{}/{}", m.steps_completed, m.steps_planned),
-                note: m.reason.or(m.error).unwrap_or_default(),
-                dir,
-            },
+            Ok(m) => {
+                let simulated = !m.devices.is_empty()
+                    && m.devices
+                        .iter()
+                        .all(|d| d.identity.starts_with("simulated"));
+                let at = |s: &str| s.parse::<jiff::Timestamp>().ok();
+                let duration_s = m
+                    .ended_utc
+                    .as_deref()
+                    .and_then(at)
+                    .zip(at(&m.started_utc))
+                    .map(|(end, start)| {
+                        (end.as_nanosecond() - start.as_nanosecond()) as f64 * 1e-9
+                    });
+                RunSummary {
+                    status: effective_status(&dir, m.status).to_string(),
+                    protocol: m.protocol,
+                    started: m.started_utc,
+                    steps: format!("{}/{}", m.steps_completed, m.steps_planned),
+                    note: m.reason.or(m.error).unwrap_or_default(),
+                    duration_s,
+                    seed: Some(m.seed),
+                    rig: if simulated {
+                        format!("{} (simulated)", m.rig)
+                    } else {
+                        m.rig
+                    },
+                    dir,
+                }
+            }
             Err(e) => RunSummary {
                 dir,
                 protocol: String::new(),
@@ -58,6 +86,9 @@ pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
                 started: String::new(),
                 steps: String::new(),
                 note: e,
+                duration_s: None,
+                seed: None,
+                rig: String::new(),
             },
         })
         .collect())

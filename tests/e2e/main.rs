@@ -15,6 +15,7 @@ mod peers;
 mod physics;
 mod plan;
 mod report;
+mod report_cli;
 mod signals;
 mod support;
 mod track;

@@ -29,13 +29,14 @@ pub(crate) fn sim_rig() -> PathBuf {
 }
 
 /// Every shipped protocol's name.
-pub(crate) const SHIPPED: [&str; 12] = [
+pub(crate) const SHIPPED: [&str; 13] = [
     "box-normal-flat",
     "box-shear-flat",
     "box-normal-sphere",
     "box-shear-sphere",
     "box-normal-ellipse",
     "box-normal-rectangle",
+    "box-normal-triangle",
     "portable-normal",
     "portable-shear",
     "portable-rotation",

@@ -77,7 +77,10 @@ fn a_dry_run_directory_tracks_to_the_simulators_exact_centres() {
         .next()
         .unwrap()
         .to_string();
-    assert_eq!(header, "frame,id,x_px,y_px,dx_px,dy_px,state,confidence");
+    assert_eq!(
+        header,
+        "frame,file,id,x_px,y_px,dx_px,dy_px,state,confidence"
+    );
     let rows = csv_rows(&csv);
     let frames = csv_rows(&run.join("frames.csv")).len();
     let markers = rows.iter().filter(|r| r["frame"] == "0").count();

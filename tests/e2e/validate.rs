@@ -267,7 +267,8 @@ fn semantic_checks_catch_common_mistakes() {
     // A span that is not a whole number of steps.
     let text = edit(&base, "      step: 2 %", "      step: 3 %");
     let d = error_with(&text, "not a whole number of steps");
-    assert!(d.fix.contains("choose `to`"), "{d}");
+    // The two nearest whole numbers of steps, in the unit `to` was written in.
+    assert!(d.fix.contains("choose `to` = 18 % or 21 %"), "{d}");
     // A pressing axis without a retract position.
     let text = edit(&base, "  retract: {normal: 0 mm}\n", "");
     error_with(&text, "has no retract position");
@@ -377,4 +378,77 @@ fn schema_is_generated_from_the_parser_types() {
         .unwrap();
     let rig: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(rig.to_string().contains("normal_contact"));
+}
+
+/// Errors inside `indenter:` point at the value, not at the file's first line.
+#[test]
+fn errors_inside_the_indenter_point_at_the_value() {
+    let base = shipped_text("portable-normal");
+    let text = edit(&base, "diameter: 12.5 mm}", "diameter: 12.5}");
+    let d = error_with(&text, "has no unit");
+    let line = line_of(&text, "indenter:");
+    assert_eq!(
+        (d.line, d.column),
+        (
+            line,
+            text.lines().nth(line - 1).unwrap().find("12.5").unwrap() + 1
+        ),
+        "{d}"
+    );
+    let text = edit(
+        &base,
+        "{shape: flat_circle, diameter: 12.5 mm}",
+        "{shape: flat_circle}",
+    );
+    let d = error_with(&text, "missing field `diameter`");
+    assert_eq!(d.line, line, "{d}");
+    assert!(d.column > 1, "{d}");
+}
+
+/// A copied protocol whose `rig:` no longer resolves: the resolved path, at the `rig:` line,
+/// with the simulated rig to pass instead; shipped protocols run and list by name.
+#[test]
+fn a_rig_that_does_not_resolve_and_protocols_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("mine.yaml");
+    std::fs::write(&copy, shipped_text("box-normal-flat")).unwrap();
+    let o = Command::new(gelrig())
+        .arg("validate")
+        .arg(&copy)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    let resolved = dir.path().join("rigs/sim.yaml");
+    assert!(
+        e.contains(&format!(
+            "mine.yaml:{}:6",
+            line_of(&shipped_text("box-normal-flat"), "rig:")
+        )),
+        "{e}"
+    );
+    assert!(
+        e.contains(&resolved.display().to_string()) && e.contains("does not exist"),
+        "{e}"
+    );
+    assert!(e.contains("--rig") && e.contains("rigs/sim.yaml"), "{e}");
+    // By name from a folder without such a file.
+    let o = Command::new(gelrig())
+        .current_dir(dir.path())
+        .args(["validate", "box-normal-flat"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("using the shipped protocol"));
+    // Listed.
+    let o = Command::new(gelrig()).arg("protocols").output().unwrap();
+    assert!(o.status.success());
+    let list = String::from_utf8_lossy(&o.stdout);
+    for name in SHIPPED {
+        assert!(list.contains(name), "{name} not in {list}");
+    }
+    assert!(
+        list.contains("Normal indentation of the box sensor with a 9.5 mm flat circular punch"),
+        "{list}"
+    );
 }

@@ -110,7 +110,7 @@ fn sim_serve_probe_and_box_normal_flat_through_the_real_drivers() {
         "Zaber device id",
         "SMC100CC",
         "(RTU) unit 1",
-        "counts/force",
+        "counts per N,",
     ] {
         assert!(out.contains(identity), "{identity}: {out}");
     }

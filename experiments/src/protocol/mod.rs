@@ -5,7 +5,9 @@
 //! and [`compile`] checks everything that needs both and expands the sequence.
 
 pub mod compile;
+mod overrides;
 pub mod schema;
+pub mod shipped;
 pub mod source;
 
 use std::path::{Path, PathBuf};
@@ -120,8 +122,72 @@ pub fn load_rig(path: &Path) -> Result<(RigConfig, String), Vec<Diagnostic>> {
 pub fn parse(file: &Path, text: &str) -> Result<Protocol, Box<Diagnostic>> {
     source::mapping(file, text, "a protocol", PROTOCOL_KEYS)
         .map_err(|mut d| Box::new(d.remove(0)))?;
-    serde_yaml::from_str::<Protocol>(text)
-        .map_err(|e| Box::new(Diagnostic::from_yaml_error(file, text, &e)))
+    serde_yaml::from_str::<Protocol>(text).map_err(|e| {
+        let mut d = Diagnostic::from_yaml_error(file, text, &e);
+        if e.location().is_none_or(|l| l.line() <= 1) {
+            // Errors inside internally tagged maps (`indenter:`, `markers:`) come without a
+            // place: find the value serde was reading, and the offending token in it.
+            if let Some(path) = failing_path(text) {
+                d = relocate(d, file, text, &path);
+            }
+        }
+        Box::new(d)
+    })
+}
+
+/// The path of the value whose deserialisation failed, as far as serde can follow it.
+fn failing_path(text: &str) -> Option<rig::config::YamlPath> {
+    let de = serde_yaml::Deserializer::from_str(text);
+    let err = serde_path_to_error::deserialize::<_, Protocol>(de).err()?;
+    let mut path = rig::config::YamlPath::root();
+    for seg in err.path().iter() {
+        path = match seg {
+            serde_path_to_error::Segment::Map { key } => path.key(key),
+            serde_path_to_error::Segment::Seq { index } => path.index(*index),
+            _ => return None,
+        };
+    }
+    (!path.0.is_empty()).then_some(path)
+}
+
+/// `d` moved to `path` in `text` — and, when its message quotes the offending value
+/// (`` `12.5` has no unit``) or names a missing field, to that value or the mapping's start.
+fn relocate(d: Diagnostic, file: &Path, text: &str, path: &rig::config::YamlPath) -> Diagnostic {
+    let mut at = Diagnostic::at_path(
+        file,
+        text,
+        path,
+        d.severity,
+        d.message.clone(),
+        d.fix.clone(),
+    );
+    if let Some(token) = d
+        .message
+        .strip_prefix('`')
+        .and_then(|r| r.split('`').next())
+        .filter(|t| !t.is_empty())
+    {
+        // The quoted value on the value's line (or the lines of its block below).
+        for (k, line) in text
+            .lines()
+            .enumerate()
+            .skip(at.line.saturating_sub(1))
+            .take(12)
+        {
+            let from = if k + 1 == at.line {
+                at.column.saturating_sub(1)
+            } else {
+                0
+            };
+            if let Some(c) = line.get(from..).and_then(|rest| rest.find(token)) {
+                at.line = k + 1;
+                at.column = from + c + 1;
+                at.source_line = Some(line.to_string());
+                break;
+            }
+        }
+    }
+    at
 }
 
 /// Reads, parses, resolves and checks `protocol_path` against its rig (or `rig_override`),
@@ -139,6 +205,54 @@ pub fn load_with(
     budget: &Budget,
 ) -> Result<Loaded, Vec<Diagnostic>> {
     let text = read(protocol_path, "the protocol")?;
+    load_text(protocol_path, text, rig_override, budget)
+}
+
+/// Values given on the command line in place of the protocol's own.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// `KEY=VALUE` pairs: a dotted path into the protocol (`indenter.diameter`,
+    /// `sequence.3.stepped.step`) and a YAML value (`10 mm`, `{fixed: 60 s}`).
+    pub set: Vec<String>,
+    /// The run's name in place of the protocol's.
+    pub name: Option<String>,
+}
+
+/// [`load_with`] with `overrides` applied to the protocol's text first. An edited protocol is
+/// recorded as run (its `protocol.yaml`) and gets a name of its own: `--name`, or the
+/// protocol's name with a hash of the overrides (`box-normal-flat-3f9a1c`), so its runs are
+/// told apart from the unedited protocol's. Diagnostics then refer to the edited text.
+pub fn load_with_overrides(
+    protocol_path: &Path,
+    rig_override: Option<&Path>,
+    budget: &Budget,
+    overrides: &Overrides,
+) -> Result<Loaded, Vec<Diagnostic>> {
+    if overrides == &Overrides::default() {
+        return load_with(protocol_path, rig_override, budget);
+    }
+    let text = read(protocol_path, "the protocol")?;
+    let edited = overrides::apply(&text, overrides).map_err(|(message, fix)| {
+        vec![Diagnostic::at_path(
+            protocol_path,
+            &text,
+            &rig::config::YamlPath::root(),
+            Severity::Error,
+            message,
+            fix,
+        )]
+    })?;
+    load_text(protocol_path, edited, rig_override, budget)
+}
+
+/// Parses, resolves and checks protocol `text` read from `protocol_path` (relative paths in
+/// it resolve against that file's folder).
+fn load_text(
+    protocol_path: &Path,
+    text: String,
+    rig_override: Option<&Path>,
+    budget: &Budget,
+) -> Result<Loaded, Vec<Diagnostic>> {
     let mut protocol = parse(protocol_path, &text).map_err(|d| vec![*d])?;
     protocol.sensor.resolve_defaults();
     let rig_path = match (rig_override, &protocol.rig) {
@@ -155,6 +269,33 @@ pub fn load_with(
             )]);
         }
     };
+    if rig_override.is_none() && !rig_path.exists() {
+        // A protocol copied away from its `rigs/` folder: say where `rig:` led, at the line.
+        let suggest = shipped::sim_rig()
+            .map(|p| {
+                let shown = std::env::current_dir()
+                    .ok()
+                    .and_then(|cwd| p.strip_prefix(&cwd).ok().map(Path::to_path_buf))
+                    .unwrap_or(p);
+                format!("pass `--rig {}` (the simulated rig), or ", shown.display())
+            })
+            .unwrap_or_default();
+        return Err(vec![Diagnostic::at_path(
+            protocol_path,
+            &text,
+            &rig::config::YamlPath::root().key("rig"),
+            Severity::Error,
+            format!(
+                "`rig: {}` resolves to {}, which does not exist (a rig path is relative to the \
+                 protocol's folder)",
+                protocol.rig.as_deref().unwrap_or_default(),
+                std::path::absolute(&rig_path)
+                    .unwrap_or_else(|_| rig_path.clone())
+                    .display()
+            ),
+            format!("{suggest}correct `rig:` to point at a rig file"),
+        )]);
+    }
     let rig_text = read(&rig_path, "the rig file")?;
     source::mapping(&rig_path, &rig_text, "a rig file", RIG_KEYS)?;
     let rig = RigConfig::from_yaml_str(&rig_text)

@@ -427,6 +427,25 @@ impl Channel {
         }
     }
 
+    /// As written in the lab: `Fz`, `Tz`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Channel::Fx => "Fx",
+            Channel::Fy => "Fy",
+            Channel::Fz => "Fz",
+            Channel::Tz => "Tz",
+        }
+    }
+
+    /// The unit of its rate of change.
+    pub fn rate_unit(self) -> &'static str {
+        if self == Channel::Tz {
+            "N·mm/s"
+        } else {
+            "N/s"
+        }
+    }
+
     /// Lower-case name.
     pub fn name(self) -> &'static str {
         match self {

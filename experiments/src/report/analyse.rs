@@ -43,6 +43,15 @@ impl Kind {
         }
     }
 
+    /// What the block's axis sets, in the lab's words: depth, shear offset, angle.
+    pub(crate) fn load_name(self) -> &'static str {
+        match self {
+            Self::Normal => "depth",
+            Self::Shear => "shear offset",
+            Self::Rotation => "angle",
+        }
+    }
+
     pub(crate) fn force_unit(self) -> &'static str {
         if self == Self::Rotation { "N·mm" } else { "N" }
     }

@@ -8,9 +8,15 @@
 //! no field sections, a run that never unloads no hysteresis, a normal-only run no slip.
 
 pub(crate) mod analyse;
+mod compare;
 mod contact;
+mod field_figures;
 mod gelsight_force;
+mod header;
+mod headline;
+mod html;
 pub mod plots;
+mod relaxation;
 mod snapshots;
 mod trials;
 mod write;
@@ -20,6 +26,8 @@ use std::path::{Path, PathBuf};
 pub use crate::rundir::RunDirError as ReportError;
 pub(crate) use crate::rundir::{ForceRow, RunData, StepRow, read_run};
 pub use analyse::Report;
+pub use compare::compare;
+pub use headline::headline;
 
 /// Where the report went and its headline numbers.
 #[derive(Debug, Clone)]

@@ -32,16 +32,72 @@ pub enum Mark {
     LinePoints,
 }
 
+/// Palette indices from here on are a sequential colour map (viridis), for series ordered
+/// by step: [`step_colour`].
+pub const SEQUENTIAL: usize = 1000;
+
+/// The palette index of step `k` of `n` on the sequential colour map: up to 20 steps stay
+/// distinguishable and their order shows (dark: first, yellow: last).
+pub fn step_colour(k: usize, n: usize) -> usize {
+    SEQUENTIAL + (999 * k) / n.saturating_sub(1).max(1)
+}
+
+fn colour_of(index: usize) -> RGBColor {
+    if index >= SEQUENTIAL {
+        use plotters::style::colors::colormaps::{ColorMap, ViridisRGB};
+        // The last tenth of viridis is too pale on white.
+        let h = 0.9 * (index - SEQUENTIAL).min(999) as f64 / 999.0;
+        ViridisRGB.get_color(h)
+    } else {
+        PALETTE[index % PALETTE.len()]
+    }
+}
+
+/// A tick label without float noise: as many decimals as the axis's tick spacing needs
+/// (`span` / 5), trailing zeros dropped — 0.3, not 0.30000000000000004.
+pub fn tick_label(v: f64, span: f64) -> String {
+    if !v.is_finite() {
+        return String::new();
+    }
+    let step = (span.abs() / 5.0).max(1e-12);
+    let decimals = (-step.log10().floor()).clamp(0.0, 9.0) as usize;
+    let s = format!("{v:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" { "0".into() } else { s }
+}
+
+/// A tick label on a logarithmic axis: three significant digits, no float noise.
+fn log_tick_label(v: f64) -> String {
+    if !(v.is_finite() && v > 0.0) {
+        return String::new();
+    }
+    let decimals = (2.0 - v.log10().floor()).clamp(0.0, 12.0) as usize;
+    if (1e-3..1e5).contains(&v) {
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        format!("{v:.1e}")
+    }
+}
+
 /// One named series.
 #[derive(Debug, Clone)]
 pub struct Series {
-    /// Legend text.
+    /// Legend text (empty: no legend entry).
     pub name: String,
     /// (x, y) points; non-finite ones are skipped.
     pub points: Vec<(f64, f64)>,
     /// Drawing style.
     pub mark: Mark,
-    /// Palette index.
+    /// Palette index (from [`SEQUENTIAL`] on, the sequential map: [`step_colour`]).
     pub colour: usize,
 }
 
@@ -135,7 +191,25 @@ fn range(chart: &Chart) -> ((f64, f64), (f64, f64)) {
             pad(y0, y1)
         },
     );
+    // Room above the data for the legend (it sits in an upper corner): about 17 px per
+    // entry of the plot's ~330 px, so no entry covers a point.
+    let entries = legend_entries(chart);
+    if entries == 0 {
+        return ((x0, x1), (y0, y1));
+    }
+    let share = ((17.0 * entries as f64 + 14.0) / 330.0).min(0.6);
+    let y1 = if chart.log_y {
+        let (l0, l1) = (y0.ln(), y1.ln());
+        (l0 + (l1 - l0) / (1.0 - share)).exp()
+    } else {
+        y0 + (y1 - y0) / (1.0 - share)
+    };
     ((x0, x1), (y0, y1))
+}
+
+/// Legend entries of `chart`: named series and marker lines.
+fn legend_entries(chart: &Chart) -> usize {
+    chart.series.iter().filter(|s| !s.name.is_empty()).count() + chart.markers.len()
 }
 
 fn draw<DB: DrawingBackend>(
@@ -157,9 +231,21 @@ where
     macro_rules! body {
         ($ctx:expr) => {{
             let mut ctx = $ctx;
+            let (xspan, yspan) = (x1 - x0, y1 - y0);
+            let xfmt = move |v: &f64| tick_label(*v, xspan);
+            let log_y = chart.log_y;
+            let yfmt = move |v: &f64| {
+                if log_y {
+                    log_tick_label(*v)
+                } else {
+                    tick_label(*v, yspan)
+                }
+            };
             ctx.configure_mesh()
                 .x_desc(chart.x_label.as_str())
                 .y_desc(chart.y_label.as_str())
+                .x_label_formatter(&xfmt)
+                .y_label_formatter(&yfmt)
                 .label_style(("sans-serif", 13))
                 .light_line_style(RGBColor(235, 235, 235))
                 .draw()
@@ -190,42 +276,47 @@ where
                 });
             }
             for s in &chart.series {
-                let c = PALETTE[s.colour % PALETTE.len()];
+                let c = colour_of(s.colour);
                 let pts: Vec<(f64, f64)> = s
                     .points
                     .iter()
                     .copied()
                     .filter(|p| p.0.is_finite() && p.1.is_finite() && (!chart.log_y || p.1 > 0.0))
                     .collect();
+                let named = !s.name.is_empty();
                 if matches!(s.mark, Mark::Line | Mark::LinePoints) {
-                    ctx.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
-                        .map_err(e)?
-                        .label(s.name.as_str())
-                        .legend(move |(x, y)| {
+                    let a = ctx
+                        .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
+                        .map_err(e)?;
+                    if named {
+                        a.label(s.name.as_str()).legend(move |(x, y)| {
                             PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2))
                         });
+                    }
                 }
                 if matches!(s.mark, Mark::Points | Mark::LinePoints) {
                     let a = ctx
                         .draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled())))
                         .map_err(e)?;
-                    if s.mark == Mark::Points {
+                    if s.mark == Mark::Points && named {
                         a.label(s.name.as_str())
                             .legend(move |(x, y)| Circle::new((x + 8, y), 3, c.filled()));
                     }
                 }
             }
-            ctx.configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(RGBColor(200, 200, 200))
-                .label_font(("sans-serif", 12))
-                .position(if chart.legend_upper_right {
-                    SeriesLabelPosition::UpperRight
-                } else {
-                    SeriesLabelPosition::UpperLeft
-                })
-                .draw()
-                .map_err(e)?;
+            if legend_entries(chart) > 0 {
+                ctx.configure_series_labels()
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(RGBColor(200, 200, 200))
+                    .label_font(("sans-serif", 12))
+                    .position(if chart.legend_upper_right {
+                        SeriesLabelPosition::UpperRight
+                    } else {
+                        SeriesLabelPosition::UpperLeft
+                    })
+                    .draw()
+                    .map_err(e)?;
+            }
         }};
     }
     if chart.log_y {
@@ -261,4 +352,44 @@ pub fn rgb(chart: &Chart) -> Result<Vec<u8>, String> {
         chart,
     )?;
     Ok(buf)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels_carry_no_float_noise() {
+        assert_eq!(tick_label(0.1 + 0.2, 1.0), "0.3");
+        assert_eq!(tick_label(120.0, 600.0), "120");
+        assert_eq!(tick_label(-0.0001, 1.0), "0");
+        assert_eq!(tick_label(2.6, 10.0), "3");
+        assert_eq!(tick_label(0.014, 0.005), "0.014");
+        assert_eq!(tick_label(0.014, 0.05), "0.01");
+        assert_eq!(log_tick_label(0.30000000000000004), "0.3");
+        assert_eq!(log_tick_label(1e-6), "1.0e-6");
+    }
+
+    #[test]
+    fn the_legend_gets_room_above_the_data() {
+        let chart = Chart {
+            series: (0..4)
+                .map(|k| Series::line(&format!("step {k}"), vec![(0.0, 0.0), (1.0, 1.0)], k))
+                .collect(),
+            ..Default::default()
+        };
+        let (_, (y0, y1)) = range(&chart);
+        // The data's top (1.04 after padding) sits below the legend's four entries.
+        let legend_bottom = y1 - (y1 - y0) * (17.0 * 4.0 + 14.0) / 330.0;
+        assert!(legend_bottom >= 1.04 - 1e-9, "{y0} {y1} {legend_bottom}");
+    }
+
+    #[test]
+    fn steps_get_distinct_ordered_colours() {
+        let c: Vec<RGBColor> = (0..20).map(|k| colour_of(step_colour(k, 20))).collect();
+        for w in c.windows(2) {
+            assert_ne!(w[0], w[1]);
+        }
+        assert_eq!(step_colour(0, 1), SEQUENTIAL);
+    }
 }

@@ -5,14 +5,13 @@ use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use base64::Engine as _;
 use serde_json::{Value, json};
 
 use super::analyse::{Block, Kind, Report};
 use super::plots::{Chart, Mark, SIZE, Series, rgb, svg};
 use super::{ReportError, RunData, Written};
 
-fn werr(path: &Path) -> impl Fn(String) -> ReportError + '_ {
+pub(super) fn werr(path: &Path) -> impl Fn(String) -> ReportError + '_ {
     move |detail| ReportError::Write {
         path: path.to_path_buf(),
         detail,
@@ -20,20 +19,20 @@ fn werr(path: &Path) -> impl Fn(String) -> ReportError + '_ {
 }
 
 /// A section of the report: a title, markdown text and plots.
-struct Section {
-    title: String,
-    text: String,
-    plots: Vec<String>,
+pub(super) struct Section {
+    pub(super) title: String,
+    pub(super) text: String,
+    pub(super) plots: Vec<String>,
 }
 
-struct Out {
-    dir: PathBuf,
-    sections: Vec<Section>,
+pub(super) struct Out {
+    pub(super) dir: PathBuf,
+    pub(super) sections: Vec<Section>,
 }
 
 impl Out {
     /// Writes `name.svg` and `name.png` and returns the name.
-    fn plot(&self, name: &str, chart: &Chart) -> Result<String, ReportError> {
+    pub(super) fn plot(&self, name: &str, chart: &Chart) -> Result<String, ReportError> {
         let s = svg(chart).map_err(werr(&self.dir.join(format!("{name}.svg"))))?;
         let p = self.dir.join(format!("{name}.svg"));
         fs::write(&p, s).map_err(|e| werr(&p)(e.to_string()))?;
@@ -47,7 +46,7 @@ impl Out {
     }
 }
 
-fn f(v: f64, digits: usize) -> String {
+pub(super) fn f(v: f64, digits: usize) -> String {
     if v.is_finite() {
         format!("{v:.digits$}")
     } else {
@@ -55,7 +54,7 @@ fn f(v: f64, digits: usize) -> String {
     }
 }
 
-fn num(v: f64) -> Value {
+pub(super) fn num(v: f64) -> Value {
     if v.is_finite() { json!(v) } else { Value::Null }
 }
 
@@ -74,9 +73,12 @@ pub(super) fn write(
         dir: dir.to_path_buf(),
         sections: Vec::new(),
     };
-    let mut summary = json!({
-        "run": {"dir": data.dir.display().to_string(), "protocol": data.protocol_name,
-                "steps": data.steps.len(), "frames": data.frames.len(), "simulated": data.sim.is_some()},
+    let (run_md, run_json) = super::header::header(data);
+    let mut summary = json!({ "run": run_json });
+    out.sections.push(Section {
+        title: "Run".into(),
+        text: run_md,
+        plots: Vec::new(),
     });
     force_time(data, &mut out)?;
     let main = r
@@ -89,6 +91,8 @@ pub(super) fn write(
     for (k, b) in r.blocks.iter().enumerate() {
         let j = block_sections(data, r, b, k, &mut out)?;
         if Some(k) == main {
+            summary["main_block"] = json!({"kind": b.kind.name(), "unit": b.unit,
+                "force_unit": b.kind.force_unit()});
             for key in ["linearity", "hysteresis", "slip", "force_from_field"] {
                 if let Some(v) = j.get(key) {
                     summary[key] = v.clone();
@@ -101,7 +105,7 @@ pub(super) fn write(
     if let (Some(slope), Some(lin)) = (r.sim_slope, summary.get_mut("linearity")) {
         lin["sim_slope"] = num(slope);
     }
-    relaxation_section(r, &mut out, &mut summary)?;
+    super::relaxation::section(r, &mut out, &mut summary)?;
     if let Some((title, text, rows)) = super::contact::section(data) {
         out.sections.push(Section {
             title,
@@ -154,8 +158,9 @@ pub(super) fn write(
     let p = dir.join("summary.json");
     let text = serde_json::to_string_pretty(&summary).map_err(|e| werr(&p)(e.to_string()))?;
     fs::write(&p, text).map_err(|e| werr(&p)(e.to_string()))?;
-    write_md(data, &out)?;
-    write_html(data, &out)?;
+    let heading = super::html::Heading::run(data);
+    super::html::write_md(&heading, &out)?;
+    super::html::write_html(&heading, &out)?;
     Ok(Written {
         dir: dir.to_path_buf(),
         sections,
@@ -237,10 +242,12 @@ fn block_sections(
             .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
                 (a.0.min(p.0), a.1.max(p.0))
             });
+        // The line over the loads it was fitted on (the linear range), not beyond.
+        let fit_end = lin.range.as_ref().map_or(x1, |rg| rg.end_x.min(x1));
         let line = |l: &analysis::linearity::LineFit| {
             vec![
                 (x0.min(0.0), l.slope * x0.min(0.0) + l.intercept),
-                (x1, l.slope * x1 + l.intercept),
+                (fit_end, l.slope * fit_end + l.intercept),
             ]
         };
         let mut series = vec![
@@ -294,7 +301,7 @@ fn block_sections(
             &format!("{tag}_force_load"),
             &Chart {
                 title: format!("{} force against load", b.kind.name()),
-                x_label: format!("load ({unit})"),
+                x_label: format!("{} ({unit})", b.kind.load_name()),
                 y_label: b.kind.force_label().into(),
                 series,
                 markers,
@@ -415,7 +422,9 @@ fn block_sections(
     // Hysteresis.
     if let Some(h) = &b.hysteresis {
         let mut text = format!(
-            "| | loop area | max gap | at | residual at zero load |\n|---|---|---|---|---|\n| force–load | {} {fu}·{unit} | {} {fu} | {} {unit} | {} {fu} |\n",
+            "| | loop area | max gap | at | residual at zero {} |\n|---|---|---|---|---|\n| force–{} | {} {fu}·{unit} | {} {fu} | {} {unit} | {} {fu} |\n",
+            b.kind.load_name(),
+            b.kind.load_name(),
             f(h.loop_area, 5),
             f(h.max_gap, 4),
             f(h.max_gap_at, 3),
@@ -437,7 +446,7 @@ fn block_sections(
             &format!("{tag}_hysteresis"),
             &Chart {
                 title: "hysteresis loop".into(),
-                x_label: format!("load ({unit})"),
+                x_label: format!("{} ({unit})", b.kind.load_name()),
                 y_label: b.kind.force_label().into(),
                 series: vec![
                     Series {
@@ -469,14 +478,16 @@ fn block_sections(
     if let Some(s) = &b.slip {
         let load: Vec<&super::analyse::BlockStep> =
             b.steps.iter().filter(|s| !s.unloading).collect();
-        let mut text = String::from(
-            "| step | load | force | (a) force | (b) central line | (c) contact | state |\n|---|---|---|---|---|---|---|\n",
+        let mut text = format!(
+            "| step | {} ({unit}) | {} | (a) force | (b) central line | (c) contact | state |\n|---|---|---|---|---|---|---|\n",
+            b.kind.load_name(),
+            b.kind.force_label()
         );
         let opt = |v: Option<analysis::slip::State>| v.map_or("—", |s| s.as_str());
         for (st, v) in load.iter().zip(&s.report.steps) {
             let _ = writeln!(
                 text,
-                "| {} | {} {unit} | {} {fu} | {} | {} | {} | **{}** |",
+                "| {} | {} | {} | {} | {} | {} | **{}** |",
                 st.step,
                 f(st.load, 3),
                 f(st.force, 3),
@@ -571,7 +582,7 @@ fn block_sections(
             &format!("{tag}_slip"),
             &Chart {
                 title: "slip state per step".into(),
-                x_label: format!("load ({unit})"),
+                x_label: format!("{} ({unit})", b.kind.load_name()),
                 y_label: b.kind.force_label().into(),
                 series,
                 ..Default::default()
@@ -589,7 +600,10 @@ fn block_sections(
         });
     }
     // Fields: profiles and force from field.
-    if !b.profiles.is_empty() || b.field_force.is_some() {
+    // Rotation blocks have no radial profiles nor a force-from-field fit, but their twist
+    // field is the picture that matters.
+    let field_pics = super::field_figures::figures(data, b, out)?;
+    if !b.profiles.is_empty() || b.field_force.is_some() || !field_pics.is_empty() {
         let mut plots = Vec::new();
         let mut text = String::new();
         if !b.profiles.is_empty() {
@@ -695,7 +709,12 @@ fn block_sections(
                 "scales": ff.scales.iter().map(|v| num(*v)).collect::<Vec<_>>(), "predicted": p.predicted.iter().map(|v| num(*v)).collect::<Vec<_>>(),
                 "calibration": p.calibration});
         }
-        let field_pics = field_pictures(data, b, out)?;
+        if b.kind == Kind::Rotation && !field_pics.is_empty() {
+            text.push_str(
+                "The twist field at chosen steps: the markers turn about the contact's centre \
+                 (thesis Fig. 6-16).\n",
+            );
+        }
         plots.extend(field_pics);
         out.sections.push(Section {
             title: format!("Displacement field — {} (block {})", b.kind.name(), k + 1),
@@ -704,333 +723,4 @@ fn block_sections(
         });
     }
     Ok(j)
-}
-
-/// Quiver pictures of the block's last loading step, from the tracked markers.
-fn field_pictures(data: &RunData, b: &Block, out: &Out) -> Result<Vec<String>, ReportError> {
-    let Some(s) = b
-        .steps
-        .iter()
-        .filter(|s| !s.unloading)
-        .max_by(|a, c| a.force.abs().total_cmp(&c.force.abs()))
-    else {
-        return Ok(Vec::new());
-    };
-    let Some(frame) = data.last_frame_of(s.step) else {
-        return Ok(Vec::new());
-    };
-    let (Some(field), Some((w, h))) = (crate::rundir::frame_field(data, frame), data.frame_size)
-    else {
-        return Ok(Vec::new());
-    };
-    let max = field
-        .measured_ids()
-        .map(|i| field.displacement_px[i][0].hypot(field.displacement_px[i][1]))
-        .fold(0.0, f64::max);
-    let q = analysis::field::picture::Quiver {
-        frame_px: (w, h),
-        zoom: 1.0,
-        magnify: (20.0 / max.max(1e-3)).clamp(1.0, 20.0),
-        spacing_px: super::analyse::spacing_px(&field),
-    };
-    let name = format!("field_step{}", s.step);
-    let svg_text = analysis::field::picture::quiver_svg(&field, &q, None)
-        .map_err(|e| werr(&out.dir)(e.to_string()))?;
-    let p = out.dir.join(format!("{name}.svg"));
-    fs::write(&p, svg_text).map_err(|e| werr(&p)(e.to_string()))?;
-    Ok(vec![format!("{name}.svg")])
-}
-
-fn relaxation_section(r: &Report, out: &mut Out, summary: &mut Value) -> Result<(), ReportError> {
-    if r.relaxation.is_empty() {
-        return Ok(());
-    }
-    let mut text = String::from(
-        "F(t) = F∞ + Σ Aᵢ·exp(−t/τᵢ), 0–3 terms chosen by BIC, fitted by variable projection from the end of each move; the thesis's value is the mean of the last force window.\n\n| step | terms | F∞ | σ(F∞) | τ (s) | last-window mean | truth | trust |\n|---|---|---|---|---|---|---|---|\n",
-    );
-    for s in &r.relaxation {
-        let taus: Vec<String> = s.fit.taus_s.iter().map(|t| f(*t, 2)).collect();
-        let _ = writeln!(
-            text,
-            "| {} | {} | {} | {} | {} | {} | {} | {} |",
-            s.step,
-            s.fit.terms,
-            f(s.fit.f_inf, 4),
-            f(s.fit.sigma_f_inf, 4),
-            if taus.is_empty() {
-                "—".into()
-            } else {
-                taus.join(", ")
-            },
-            f(s.fit.window_mean, 4),
-            s.truth.map_or("—".into(), |t| f(t, 4)),
-            if s.fit.confident() {
-                "confident".into()
-            } else {
-                s.fit.issues.join("; ")
-            }
-        );
-    }
-    if let Some(sh) = &r.shared {
-        let _ = writeln!(
-            text,
-            "\nTime constants shared by all relaxing steps (pooled variable projection): **τ = {} s**.",
-            sh.taus_s
-                .iter()
-                .map(|t| f(*t, 3))
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
-    let mut plots = Vec::new();
-    // A few steps' records with their fits, relative to F∞, on a log scale.
-    let picks: Vec<&super::analyse::StepRelax> = r
-        .relaxation
-        .iter()
-        .filter(|s| s.fit.terms >= 1)
-        .step_by((r.relaxation.len() / 4).max(1))
-        .take(4)
-        .collect();
-    if !picks.is_empty() {
-        let mut series = Vec::new();
-        for (i, s) in picks.iter().enumerate() {
-            let every = (s.t_s.len() / 600).max(1);
-            let sign = if s.fit.amplitudes.iter().sum::<f64>() < 0.0 {
-                -1.0
-            } else {
-                1.0
-            };
-            series.push(Series {
-                name: format!("step {} data", s.step),
-                points: s
-                    .t_s
-                    .iter()
-                    .zip(&s.f)
-                    .step_by(every)
-                    .map(|(t, v)| (*t, sign * (v - s.fit.f_inf)))
-                    .collect(),
-                mark: Mark::Points,
-                colour: i,
-            });
-            if let Some(fit) = &s.fit.fit {
-                series.push(Series {
-                    name: format!("step {} fit", s.step),
-                    points: s
-                        .t_s
-                        .iter()
-                        .step_by(every)
-                        .map(|t| (*t, sign * (fit.eval(*t) - s.fit.f_inf)))
-                        .collect(),
-                    mark: Mark::Line,
-                    colour: i,
-                });
-            }
-        }
-        plots.push(out.plot(
-            "relaxation",
-            &Chart {
-                title: "relaxation: |F(t) − F∞| with fits".into(),
-                x_label: "time since the end of the move (s)".into(),
-                y_label: "|F − F∞| (N or N·mm)".into(),
-                series,
-                log_y: true,
-                ..Default::default()
-            },
-        )?);
-    }
-    let mut settle_json = Value::Null;
-    if let Some(sc) = &r.settle {
-        let _ = writeln!(
-            text,
-            "\n**Settle error against settle time** (mean of a {} s window ending at the wait, against F∞; median over steps):\n\n| wait (s) | against F∞ | % of relaxation | against the simulator's equilibrium |\n|---|---|---|---|",
-            10
-        );
-        for (k, w) in sc.waits_s.iter().enumerate() {
-            let _ = writeln!(
-                text,
-                "| {} | {} | {} | {} |",
-                w,
-                f(sc.median_abs_vs_fit[k], 4),
-                f(sc.median_pct_vs_fit[k], 2),
-                sc.median_abs_vs_truth
-                    .as_ref()
-                    .map_or("—".into(), |v| f(v[k], 4))
-            );
-        }
-        let mut series = vec![Series {
-            name: "against fitted F∞".into(),
-            points: sc
-                .waits_s
-                .iter()
-                .copied()
-                .zip(sc.median_abs_vs_fit.iter().copied())
-                .collect(),
-            mark: Mark::LinePoints,
-            colour: 0,
-        }];
-        if let Some(t) = &sc.median_abs_vs_truth {
-            series.push(Series {
-                name: "against the simulator's equilibrium".into(),
-                points: sc.waits_s.iter().copied().zip(t.iter().copied()).collect(),
-                mark: Mark::LinePoints,
-                colour: 3,
-            });
-        }
-        plots.push(out.plot(
-            "settle_error",
-            &Chart {
-                title: "quasistatic error against settle time".into(),
-                x_label: "settle time (s)".into(),
-                y_label: "median |error| (N or N·mm)".into(),
-                series,
-                log_y: true,
-                ..Default::default()
-            },
-        )?);
-        settle_json = json!({"waits_s": sc.waits_s, "median_abs_error_vs_fit": sc.median_abs_vs_fit.iter().map(|v| num(*v)).collect::<Vec<_>>(),
-            "median_pct_of_relaxation": sc.median_pct_vs_fit.iter().map(|v| num(*v)).collect::<Vec<_>>(),
-            "median_abs_error_vs_truth": sc.median_abs_vs_truth.as_ref().map(|v| v.iter().map(|x| num(*x)).collect::<Vec<_>>())});
-    }
-    summary["relaxation"] = json!({
-        "tau_s": r.relaxation.iter().map(|s| s.fit.taus_s.clone()).collect::<Vec<_>>(),
-        "shared_tau_s": r.shared.as_ref().map(|s| s.taus_s.clone()),
-        "steps": r.relaxation.iter().map(|s| json!({"step": s.step, "terms": s.fit.terms, "f_inf": num(s.fit.f_inf), "sigma_f_inf": num(s.fit.sigma_f_inf),
-            "tau_s": s.fit.taus_s, "amplitudes": s.fit.amplitudes, "window_mean": num(s.fit.window_mean), "truth": s.truth.map(num),
-            "confident": s.fit.confident(), "issues": s.fit.issues})).collect::<Vec<_>>(),
-    });
-    summary["settle"] = settle_json;
-    out.sections.push(Section {
-        title: "Relaxation and settling".into(),
-        text,
-        plots,
-    });
-    Ok(())
-}
-
-fn write_md(data: &RunData, out: &Out) -> Result<(), ReportError> {
-    // Markdown renderers pass HTML through: the name is escaped here too.
-    let mut md = format!(
-        "# Report: {}\n\nRun `{}`.\n\n",
-        esc(&data.protocol_name),
-        data.dir.display()
-    );
-    for s in &out.sections {
-        let _ = writeln!(md, "## {}\n\n{}", s.title, s.text);
-        for p in &s.plots {
-            let file = if p.ends_with(".svg") {
-                p.clone()
-            } else {
-                format!("{p}.svg")
-            };
-            let _ = writeln!(md, "![{}]({file})\n", p.trim_end_matches(".svg"));
-        }
-    }
-    let p = out.dir.join("report.md");
-    fs::write(&p, md).map_err(|e| werr(&p)(e.to_string()))
-}
-
-/// Text from data (a protocol's name, a label, a path) made inert in HTML: a protocol named
-/// `</title><script>…` must show as text, not run.
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-        .replace('\'', "&#39;")
-}
-
-/// Minimal markdown → HTML for what the sections contain: tables, bold, inline code,
-/// paragraphs. The text is escaped first, so markup can only come from `**` and backticks.
-fn md_to_html(text: &str) -> String {
-    let bold = |s: String| {
-        let mut o = String::new();
-        for (i, code) in s.split('`').enumerate() {
-            if i % 2 == 1 {
-                let _ = write!(o, "<code>{code}</code>");
-                continue;
-            }
-            for (j, part) in code.split("**").enumerate() {
-                if j % 2 == 1 {
-                    let _ = write!(o, "<b>{part}</b>");
-                } else {
-                    o.push_str(part);
-                }
-            }
-        }
-        o
-    };
-    let mut html = String::new();
-    let mut in_table = false;
-    for line in text.lines() {
-        let l = line.trim();
-        if l.starts_with('|') {
-            if l.starts_with("|---") {
-                continue;
-            }
-            let cells: Vec<String> = l
-                .trim_matches('|')
-                .split('|')
-                .map(|c| bold(esc(c.trim())))
-                .collect();
-            let tag = if in_table { "td" } else { "th" };
-            if !in_table {
-                html.push_str("<table>");
-                in_table = true;
-            }
-            let _ = write!(
-                html,
-                "<tr>{}</tr>",
-                cells
-                    .iter()
-                    .map(|c| format!("<{tag}>{c}</{tag}>"))
-                    .collect::<String>()
-            );
-        } else {
-            if in_table {
-                html.push_str("</table>\n");
-                in_table = false;
-            }
-            if !l.is_empty() {
-                let _ = writeln!(html, "<p>{}</p>", bold(esc(l)));
-            }
-        }
-    }
-    if in_table {
-        html.push_str("</table>\n");
-    }
-    html
-}
-
-fn write_html(data: &RunData, out: &Out) -> Result<(), ReportError> {
-    let mut html = format!(
-        "<!doctype html><html><head><meta charset=\"utf-8\"><title>gelrig report: {}</title><style>body{{font-family:sans-serif;max-width:980px;margin:auto;padding:1em}}table{{border-collapse:collapse;margin:.5em 0}}td,th{{border:1px solid #ccc;padding:2px 8px;font-size:90%}}img{{max-width:100%}}</style></head><body><h1>Report: {}</h1><p>Run <code>{}</code></p>",
-        esc(&data.protocol_name),
-        esc(&data.protocol_name),
-        esc(&data.dir.display().to_string())
-    );
-    for s in &out.sections {
-        let _ = write!(html, "<h2>{}</h2>{}", esc(&s.title), md_to_html(&s.text));
-        for p in &s.plots {
-            let file = if p.ends_with(".svg") {
-                out.dir.join(p)
-            } else {
-                out.dir.join(format!("{p}.png"))
-            };
-            let bytes = fs::read(&file).map_err(|e| werr(&file)(e.to_string()))?;
-            let mime = if p.ends_with(".svg") {
-                "image/svg+xml"
-            } else {
-                "image/png"
-            };
-            let _ = write!(
-                html,
-                "<p><img alt=\"{}\" src=\"data:{mime};base64,{}\"></p>",
-                esc(p),
-                base64::engine::general_purpose::STANDARD.encode(bytes)
-            );
-        }
-    }
-    html.push_str("</body></html>\n");
-    let p = out.dir.join("report.html");
-    fs::write(&p, html).map_err(|e| werr(&p)(e.to_string()))
 }

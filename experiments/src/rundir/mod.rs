@@ -128,6 +128,8 @@ pub(crate) struct MarkerRow {
 pub(crate) struct RunData {
     pub dir: PathBuf,
     pub protocol_name: String,
+    /// `run.yaml`: how the run went.
+    pub manifest: crate::record::Manifest,
     pub steps: Vec<StepRow>,
     pub force: Vec<ForceRow>,
     pub sim: Option<Vec<SimRow>>,
@@ -212,7 +214,8 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, RunDirError> {
     }
     Ok(RunData {
         dir: dir.to_path_buf(),
-        protocol_name: manifest.protocol,
+        protocol_name: manifest.protocol.clone(),
+        manifest,
         steps,
         force,
         sim,

@@ -301,10 +301,11 @@ impl Exec<'_> {
                 };
                 if verdict == "timeout" {
                     let msg = format!(
-                        "step {}: |d{}/dt| stayed above {} for the whole {} s settle",
+                        "step {}: |d{}/dt| stayed above {} {} for the whole {} s settle",
                         s.step,
-                        channel.name(),
+                        channel.label(),
                         fmt_value(below),
+                        channel.rate_unit(),
                         fmt_value(max_s)
                     );
                     if on_timeout == OnTimeout::Abort {

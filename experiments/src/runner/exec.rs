@@ -25,6 +25,8 @@ pub(super) struct Exec<'a> {
     pub(super) poll_period_ns: BTreeMap<AxisRole, u64>,
     /// The rig file's axes (in-position windows, start grace, retries).
     pub(super) loaded_axes: BTreeMap<AxisRole, rig::config::AxisConfig>,
+    /// Trials of the protocol's repeated blocks, all told.
+    pub(super) trials_total: u32,
     pub(super) retract_to: BTreeMap<AxisRole, f64>,
     pub(super) tare: Wrench,
     pub(super) origin: BTreeMap<AxisRole, f64>,
@@ -76,6 +78,12 @@ impl<'a> Exec<'a> {
                 .map(|(r, a)| (*r, super::period_ns(a.poll_rate_hz())))
                 .collect(),
             loaded_axes: loaded.rig.axes.clone(),
+            trials_total: loaded
+                .compiled
+                .actions
+                .iter()
+                .filter(|a| matches!(a.kind, ActionKind::TrialBegin))
+                .count() as u32,
             retract_to: loaded
                 .protocol
                 .safety
@@ -203,13 +211,16 @@ impl<'a> Exec<'a> {
                     let t = self.now();
                     self.rec
                         .journal(t, "trial_begin", json!({ "trial": action.trial }), true)?;
+                    let of = self.trials_total;
+                    self.progress.set_trial(action.trial, of);
                     self.progress
-                        .note(&format!("trial {} begins", action.trial));
+                        .note(&format!("trial {}/{of} begins", action.trial));
                 }
                 ActionKind::TrialEnd => {
                     let t = self.now();
                     self.rec
                         .journal(t, "trial_end", json!({ "trial": action.trial }), true)?;
+                    self.progress.set_trial(0, self.trials_total);
                 }
             }
         }

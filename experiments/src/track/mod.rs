@@ -122,6 +122,8 @@ pub struct Summary {
     pub wall_s: f64,
     /// The lattice fitted on a reference-free start.
     pub lattice: Option<analysis::tracking::lattice::Lattice>,
+    /// What the user should know about the input (the reference also among the frames).
+    pub warnings: Vec<String>,
 }
 
 /// Why tracking stopped. `markers.csv` keeps every frame tracked before the failure.
@@ -173,6 +175,22 @@ pub enum TrackFailure {
         /// What is missing, and the fix.
         detail: String,
     },
+    /// A frame's markers do not match the reference's layout: another gel, view or camera.
+    #[error(
+        "frame {path}: only {tracked} of the reference's {markers} markers could be matched \
+         (fewer than {min_pct} %): the frame does not show the gel of the reference; fix: track \
+         frames of the same sensor and camera as the reference"
+    )]
+    Mismatch {
+        /// The frame file.
+        path: PathBuf,
+        /// Markers matched.
+        tracked: usize,
+        /// Markers of the reference.
+        markers: usize,
+        /// The least share accepted, %.
+        min_pct: u32,
+    },
     /// An output could not be written.
     #[error("cannot write {path}: {detail}; fix: check that the folder exists and is writable")]
     Write {
@@ -192,8 +210,10 @@ pub(super) fn write_err(path: &Path) -> impl Fn(String) -> TrackFailure + '_ {
 
 /// One row of `markers.csv`.
 #[derive(Debug, Serialize)]
-struct MarkerRow {
+struct MarkerRow<'a> {
     frame: u64,
+    /// The image the frame came from.
+    file: &'a str,
     id: usize,
     x_px: f64,
     y_px: f64,
@@ -203,6 +223,9 @@ struct MarkerRow {
     /// Confidence in the identity, 0–1 (0 when not measured).
     confidence: f64,
 }
+
+/// Least share of the reference's markers, %, a frame must match to be tracked at all.
+const MIN_MATCHED_PCT: u32 = 25;
 
 /// One row of `contact.csv` (empty centroid and mm columns where unknown).
 #[derive(Debug, Serialize)]
@@ -240,6 +263,25 @@ pub(super) fn r4(v: f64) -> f64 {
 pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, TrackFailure> {
     let started = Instant::now();
     let (reference_path, reference_frame_no, frames) = frame_list(input)?;
+    // The reference given again among the frames tracks as no displacement at all, which
+    // reads like a gel that never moved.
+    let canonical = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
+    let reference_canonical = canonical(&reference_path);
+    let warnings: Vec<String> = if matches!(input, Input::Files { .. }) {
+        frames
+            .iter()
+            .filter(|(_, p)| canonical(p) == reference_canonical)
+            .map(|(k, p)| {
+                format!(
+                    "the reference {} is also frame {k}: it tracks as zero displacement (pass \
+                     the frames after the reference)",
+                    p.display()
+                )
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let (w, h, rgb) = load_rgb(&reference_path)?;
     let reference_err = |source| TrackFailure::Reference {
         path: reference_path.clone(),
@@ -316,6 +358,7 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
     let (mut largest, mut sq, mut worst, mut compared) = (None::<(u64, f64)>, 0.0, 0.0f64, 0);
     let (mut contact_frames, mut largest_contact) = (0, None::<(u64, f64)>);
     let mut write_frame = |frame: u64,
+                           file: &str,
                            pipeline: &Pipeline,
                            counts: &mut HashMap<&'static str, usize>,
                            count: bool|
@@ -331,6 +374,7 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
             csv_out
                 .serialize(MarkerRow {
                     frame,
+                    file,
                     id,
                     x_px: r4(p[0]),
                     y_px: r4(p[1]),
@@ -349,8 +393,9 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         }
         Ok(())
     };
+    let shown = |p: &Path| p.display().to_string();
     if let Some(no) = reference_frame_no {
-        write_frame(no, &pipeline, &mut counts, false)?;
+        write_frame(no, &shown(&reference_path), &pipeline, &mut counts, false)?;
         if let Some(f) = field.as_mut() {
             f.frame(no, &pipeline)?;
         }
@@ -373,7 +418,25 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         let t0 = Instant::now();
         pipeline.track(view).map_err(frame_err)?;
         times.push(t0.elapsed().as_secs_f64() * 1e3);
-        write_frame(frame, &pipeline, &mut counts, true)?;
+        // A frame of another gel or camera matches almost none of the reference's markers
+        // (3 % in the test of a portable frame against a box reference); a pressed gel keeps
+        // most (74 % at the real Mini sequence's deepest frame).
+        let markers = pipeline.tracker().len();
+        let tracked = pipeline
+            .tracker()
+            .states()
+            .iter()
+            .filter(|s| **s == MarkerState::Tracked)
+            .count();
+        if markers > 0 && (tracked as f64) < MIN_MATCHED_PCT as f64 / 100.0 * markers as f64 {
+            return Err(TrackFailure::Mismatch {
+                path,
+                tracked,
+                markers,
+                min_pct: MIN_MATCHED_PCT,
+            });
+        }
+        write_frame(frame, &shown(&path), &pipeline, &mut counts, true)?;
         if let Some(f) = field.as_mut() {
             f.frame(frame, &pipeline)?;
         }
@@ -427,5 +490,6 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         mm_per_px,
         wall_s: started.elapsed().as_secs_f64(),
         lattice,
+        warnings,
     })
 }

@@ -156,10 +156,13 @@ impl NetFtSensor {
                 model: "Net F/T".into(),
                 range: settings.range,
                 max_rate_hz: 7000.0,
-                identity: format!(
-                    "{dev}, {} counts/force unit {}, {} counts/torque unit {}",
-                    cal.counts_per_force, cal.force_unit, cal.counts_per_torque, cal.torque_unit
-                ),
+                identity: {
+                    let (fu, tu) = cal.unit_names();
+                    format!(
+                        "{dev}, {} counts per {fu}, {} counts per {tu}",
+                        cal.counts_per_force, cal.counts_per_torque
+                    )
+                },
             },
             settings,
             socket,

@@ -144,6 +144,34 @@ impl CalInfo {
         Ok(c)
     }
 
+    /// The force and torque units by name (codes as in [`Self::scales`]).
+    pub fn unit_names(&self) -> (String, String) {
+        let f = match self.force_unit {
+            1 => "lbf",
+            2 => "N",
+            3 => "klbf",
+            4 => "kN",
+            5 => "kgf",
+            6 => "gf",
+            u => {
+                return (
+                    format!("force unit {u}"),
+                    format!("torque unit {}", self.torque_unit),
+                );
+            }
+        };
+        let t = match self.torque_unit {
+            1 => "lbf·in",
+            2 => "lbf·ft",
+            3 => "N·m",
+            4 => "N·mm",
+            5 => "kgf·cm",
+            6 => "kN·m",
+            u => return (f.to_string(), format!("torque unit {u}")),
+        };
+        (f.to_string(), t.to_string())
+    }
+
     /// N per count and N·mm per count, from the unit codes (force: 1 lbf, 2 N, 3 klbf,
     /// 4 kN, 5 kgf, 6 gf; torque: 1 lbf-in, 2 lbf-ft, 3 N-m, 4 N-mm, 5 kgf-cm, 6 kN-m).
     pub fn scales(&self) -> Result<(f64, f64), String> {

@@ -53,6 +53,8 @@ enum Command {
     Run(cmd::run::Cmd),
     /// List runs with their status (completed, aborted, failed, running, interrupted).
     Runs(cmd::runs::Cmd),
+    /// List the shipped protocols (run one by name: `gelrig run box-normal-flat`).
+    Protocols(cmd::protocols::Cmd),
     /// Print the JSON Schema of protocol files (or rig files), for editors.
     Schema(cmd::schema::Cmd),
     /// Track GelSight markers in frames or a run: markers.csv, optional field pictures.
@@ -74,6 +76,7 @@ fn main() -> ExitCode {
         Command::Plan(c) => c.run(),
         Command::Run(c) => c.run(),
         Command::Runs(c) => c.run(),
+        Command::Protocols(c) => c.run(),
         Command::Schema(c) => c.run(),
         Command::Track(c) => c.run(),
         Command::Report(c) => c.run(),

@@ -1,7 +1,7 @@
 //! The blocks of a sequence: each one checked where it stands and expanded into actions.
 
 use rig::config::YamlPath;
-use rig::units::fmt_value;
+use rig::units::{AxisQuantity, fmt_value};
 
 use super::{
     ActionKind, ApproachSpec, Compiler, DisturbSpec, EPS, Phase, SettleSpec, Step, StreamRates,
@@ -372,11 +372,26 @@ impl Compiler<'_> {
                     fmt_value(span.abs()),
                     fmt_value(step)
                 ),
-                format!(
-                    "choose `to` = {} {u} or {} {u}, or a step that divides the span",
-                    fmt_value(from + span.signum() * n.floor() * step),
-                    fmt_value(from + span.signum() * n.ceil() * step)
-                ),
+                {
+                    // The two whole numbers of steps either side of the span, written in the
+                    // unit `to` was written in (18 % or 21 %, not 0.756 mm or 0.882 mm).
+                    let q = span.abs() / step;
+                    let (lo, hi) = (q.floor().max(1.0), q.ceil().max(q.floor() + 1.0));
+                    let in_user_unit = |k: f64| {
+                        let v = from + span.signum() * k * step;
+                        match s.to {
+                            AxisQuantity::Percent(_) if self.thickness_mm > 0.0 => {
+                                format!("{} %", fmt_value(v / self.thickness_mm * 100.0))
+                            }
+                            _ => format!("{} {u}", fmt_value(v)),
+                        }
+                    };
+                    format!(
+                        "choose `to` = {} or {}, or a step that divides the span",
+                        in_user_unit(lo),
+                        in_user_unit(hi)
+                    )
+                },
             );
             return;
         }

@@ -3,6 +3,7 @@
 pub(crate) mod calibrate;
 pub(crate) mod plan;
 pub(crate) mod probe;
+pub(crate) mod protocols;
 pub(crate) mod report;
 pub(crate) mod run;
 pub(crate) mod runs;
@@ -16,13 +17,13 @@ use std::process::ExitCode;
 
 use experiments::Diagnostic;
 use experiments::protocol::compile::Budget;
-use experiments::protocol::{Loaded, load_with};
+use experiments::protocol::{Loaded, load_with_overrides};
 
 /// Exit code for an invalid protocol or rig.
 pub(crate) const EXIT_INVALID: u8 = 2;
 
-/// How big a protocol may be: shared by `validate`, `plan` and `run`, so a protocol that
-/// validates also plans and runs.
+/// How big a protocol may be, and what the command line changes in it: shared by
+/// `validate`, `plan` and `run`, so a protocol that validates also plans and runs.
 #[derive(clap::Args, Debug, Clone, Default)]
 pub(crate) struct BudgetArgs {
     /// Most steps the protocol may expand into [default: 100000].
@@ -31,6 +32,15 @@ pub(crate) struct BudgetArgs {
     /// Most data the run may write by the plan's estimate, e.g. `500GB` [default: 100GB].
     #[arg(long, value_name = "SIZE", value_parser = Budget::parse_bytes)]
     max_data: Option<u64>,
+    /// Set a value of the protocol without editing its file, e.g. `--set
+    /// indenter.diameter=10mm` or `--set sequence.3.stepped.step=0.05mm` (repeatable; the
+    /// edited protocol is what the run records).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Name the run (and its directory) instead of the protocol's name [default with --set:
+    /// the protocol's name and a hash of the settings].
+    #[arg(long, value_name = "NAME")]
+    name: Option<String>,
 }
 
 impl BudgetArgs {
@@ -49,7 +59,15 @@ pub(crate) fn load_or_report(
     rig: Option<&Path>,
     budget: &BudgetArgs,
 ) -> Result<Loaded, ExitCode> {
-    match load_with(protocol, rig, &budget.budget()) {
+    let (protocol, by_name) = experiments::protocol::shipped::resolve(protocol);
+    if by_name {
+        err!("using the shipped protocol {}", protocol.display());
+    }
+    let overrides = experiments::protocol::Overrides {
+        set: budget.set.clone(),
+        name: budget.name.clone(),
+    };
+    match load_with_overrides(&protocol, rig, &budget.budget(), &overrides) {
         Ok(loaded) => {
             for w in &loaded.warnings {
                 err!("{w}\n");

@@ -204,6 +204,9 @@ impl Cmd {
                 return Ok(ExitCode::from(super::EXIT_INVALID));
             }
         };
+        for w in &summary.warnings {
+            err!("warning: {w}");
+        }
         out!(
             "tracked {} frames, {} markers (spacing {:.1} px), method {}",
             summary.frames,

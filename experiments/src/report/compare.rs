@@ -12,8 +12,8 @@ use serde_json::{Value, json};
 
 use super::analyse::{self, Block};
 use super::html::{Heading, esc};
+use super::out::{Out, Section, f, num};
 use super::plots::{Chart, Mark, Series};
-use super::write::{Out, Section, f, num};
 use super::{ReportError, Written, read_run};
 
 /// One number compared across runs: its label and where it sits in a run's summary.
@@ -82,7 +82,7 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
         let main = report.blocks.iter().max_by_key(|b| b.steps.len()).cloned();
         reports.push((dir.clone(), data.protocol_name.clone(), written, main));
     }
-    std::fs::create_dir_all(out).map_err(|e| super::write::werr(out)(e.to_string()))?;
+    std::fs::create_dir_all(out).map_err(|e| super::out::werr(out)(e.to_string()))?;
     let mut o = Out {
         dir: out.to_path_buf(),
         sections: Vec::new(),
@@ -218,9 +218,9 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
         "metrics": metrics_json,
     });
     let p = out.join("summary.json");
-    let body = serde_json::to_string_pretty(&summary)
-        .map_err(|e| super::write::werr(&p)(e.to_string()))?;
-    std::fs::write(&p, body).map_err(|e| super::write::werr(&p)(e.to_string()))?;
+    let body =
+        serde_json::to_string_pretty(&summary).map_err(|e| super::out::werr(&p)(e.to_string()))?;
+    std::fs::write(&p, body).map_err(|e| super::out::werr(&p)(e.to_string()))?;
     let heading = Heading {
         title: format!("Comparison of {} runs", reports.len()),
         what: reports

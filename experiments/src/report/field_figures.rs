@@ -15,7 +15,7 @@ use base64::Engine as _;
 
 use super::analyse::{Block, BlockStep, Kind};
 use super::html::esc;
-use super::write::{Out, werr};
+use super::out::{Out, werr};
 use super::{ReportError, RunData};
 
 /// Grid step of the dense maps, px (upscaled back to the frame for display).

@@ -8,7 +8,7 @@ use base64::Engine as _;
 
 use super::ReportError;
 use super::RunData;
-use super::write::{Out, werr};
+use super::out::{Out, werr};
 
 /// What a report document is about: its title and the line under it.
 pub(super) struct Heading {

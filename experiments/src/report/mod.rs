@@ -15,6 +15,7 @@ mod gelsight_force;
 mod header;
 mod headline;
 mod html;
+mod out;
 pub mod plots;
 mod relaxation;
 mod snapshots;

@@ -8,8 +8,8 @@ use serde_json::{Value, json};
 
 use super::ReportError;
 use super::analyse::{Kind, Report, StepRelax};
+use super::out::{Out, Section, f, num};
 use super::plots::{Chart, Mark, Series, step_colour};
-use super::write::{Out, Section, f, num};
 
 /// Per-step time constants that scatter by more than this factor across the steps of one
 /// kind (fitted with the same number of terms) are not identified: a well-determined τ

@@ -11,6 +11,7 @@
 
 pub mod bench;
 pub mod diag;
+pub mod export;
 pub mod plan;
 pub mod progress;
 pub mod protocol;

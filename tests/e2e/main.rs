@@ -5,6 +5,7 @@
 #![allow(clippy::unwrap_used)]
 
 mod dry_run;
+mod export;
 mod faults;
 mod force_sensing;
 mod fuzz;

@@ -83,6 +83,10 @@ pub(crate) struct ForceRow {
     pub fx_n: f64,
     pub fy_n: f64,
     pub fz_n: f64,
+    #[serde(default)]
+    pub tx_nmm: f64,
+    #[serde(default)]
+    pub ty_nmm: f64,
     pub tz_nmm: f64,
 }
 

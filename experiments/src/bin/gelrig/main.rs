@@ -63,6 +63,8 @@ enum Command {
     Report(cmd::report::Cmd),
     /// Calibrate the GelSight as a force sensor on runs with frames and force: SENSOR.yaml.
     Calibrate(cmd::calibrate::Cmd),
+    /// Write a run as MCAP with ROS 2 messages (Foxglove, Rerun, ros2 bag play).
+    Export(cmd::export::Cmd),
     /// Check that every device of a rig file answers (identity, calibration, position).
     Probe(cmd::probe::Cmd),
     /// Simulated devices on real transports: `gelrig sim serve --rig R.yaml`.
@@ -81,6 +83,7 @@ fn main() -> ExitCode {
         Command::Track(c) => c.run(),
         Command::Report(c) => c.run(),
         Command::Calibrate(c) => c.run(),
+        Command::Export(c) => c.run(),
         Command::Probe(c) => c.run(),
         Command::Sim(c) => c.run(),
     };

@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub(crate) mod calibrate;
+pub(crate) mod export;
 pub(crate) mod plan;
 pub(crate) mod probe;
 pub(crate) mod protocols;

@@ -1,0 +1,20 @@
+//! `gelrig export RUN_DIR --format mcap`: a run in the formats the field already uses.
+//!
+//! MCAP with ROS 2 message types, CDR-encoded, so a run plays with `ros2 bag play` and opens
+//! in Foxglove and Rerun:
+//!
+//! | topic | type | from |
+//! |---|---|---|
+//! | `/force` | `geometry_msgs/msg/WrenchStamped` (N and N·m, SI) | `force.csv` |
+//! | `/camera/image/compressed` | `sensor_msgs/msg/CompressedImage` (the recorded PNGs) | `frames.csv`, `frames/` |
+//! | `/stages` | `sensor_msgs/msg/JointState` (m and rad, SI) | `axes.csv` |
+//! | `/steps` | `std_msgs/msg/String` (each step's row as JSON, at its end) | `steps.csv` |
+//!
+//! Timestamps are the run's timebase (virtual time from 0 on a dry run, CLOCK_MONOTONIC on a
+//! bench). `protocol.yaml`, `rig.yaml` and `run.yaml` travel as attachments, the manifest's
+//! protocol, status and seed as metadata.
+
+mod cdr;
+mod mcap_file;
+
+pub use mcap_file::{ExportError, Exported, export_mcap};

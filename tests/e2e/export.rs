@@ -1,16 +1,17 @@
-//! `gelrig export --format mcap`: a grasp trial's run read back by an independent reader
-//! (Foxglove's Python `mcap` and `mcap-ros2-support`): every force sample as a ROS 2
-//! `WrenchStamped` with its value in SI and its time, every frame as a `CompressedImage`,
-//! stage positions, steps, attachments and metadata.
+//! `gelrig export`: a grasp trial's run read back by independent readers — MCAP by Foxglove's
+//! Python `mcap` and `mcap-ros2-support` (every force sample as a ROS 2 `WrenchStamped` with
+//! its value in SI and its time, every frame as a `CompressedImage`, stage positions, steps,
+//! attachments and metadata), Parquet by pandas (types, row counts, units, a campaign's `run`
+//! column).
 
 use std::process::{Command, Stdio};
 
 use crate::support::{csv_rows, gelrig, load_text, root, run_virtual, shipped_text};
 
-/// Whether the Python MCAP readers are here; prints the skip line (or fails under CI).
+/// Whether the Python readers are here; prints the skip line (or fails under CI).
 fn readers_available() -> bool {
     let ok = Command::new("python3")
-        .args(["-c", "import mcap, mcap_ros2"])
+        .args(["-c", "import mcap, mcap_ros2, pandas, pyarrow"])
         .stderr(Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
@@ -121,4 +122,83 @@ fn an_exported_run_reads_back_in_the_independent_mcap_reader() {
     assert_eq!(atts, ["protocol.yaml", "rig.yaml", "run.yaml"]);
     assert_eq!(j["metadata"][0]["protocol"], "lifting-can");
     assert_eq!(j["metadata"][0]["seed"], "3");
+}
+
+#[test]
+fn parquet_tables_load_in_pandas_typed_with_units_and_a_campaign_has_a_run_column() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = shipped_text("lifting-can").replace("times: 10", "times: 1");
+    let loaded = load_text(tmp.path(), &text).unwrap();
+    let runs = tmp.path().join("runs");
+    std::fs::create_dir_all(&runs).unwrap();
+    let (a, _) = run_virtual(&loaded, &runs, 1, None);
+    let (b, _) = run_virtual(&loaded, &runs, 2, None);
+    // The live path wrote tactile.csv; tracking markers for the markers table.
+    let t = Command::new(gelrig())
+        .arg("track")
+        .arg(&a.dir)
+        .output()
+        .unwrap();
+    assert!(t.status.success(), "{}", String::from_utf8_lossy(&t.stderr));
+    let export = |path: &std::path::Path, out: &std::path::Path| {
+        let e = Command::new(gelrig())
+            .arg("export")
+            .arg(path)
+            .args(["--format", "parquet", "--out"])
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
+    };
+    let one = tmp.path().join("one");
+    let campaign = tmp.path().join("campaign");
+    export(&a.dir, &one);
+    export(&runs, &campaign);
+    if !readers_available() {
+        return;
+    }
+    let read = |dir: &std::path::Path| -> serde_json::Value {
+        let r = Command::new("python3")
+            .arg(root().join("tests/peers/read_parquet.py"))
+            .arg(dir)
+            .output()
+            .unwrap();
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        serde_json::from_slice(&r.stdout).unwrap()
+    };
+    let j = read(&one);
+    for table in ["force", "axes", "steps", "frames", "markers", "tactile"] {
+        let rows = csv_rows(&a.dir.join(format!("{table}.csv"))).len();
+        assert_eq!(j[table]["rows"], rows, "{table}");
+    }
+    let dt = |t: &str, c: &str| j[t]["dtypes"][c].as_str().unwrap_or("").to_string();
+    assert_eq!(dt("force", "t_ns"), "int64");
+    assert_eq!(dt("force", "fz_n"), "float64");
+    assert_eq!(dt("steps", "saturated"), "bool");
+    assert_eq!(dt("markers", "state"), "category");
+    assert_eq!(dt("tactile", "state"), "category");
+    assert_eq!(j["force"]["units"]["fz_n"], "N");
+    assert_eq!(j["force"]["units"]["tz_nmm"], "N·mm");
+    assert_eq!(j["force"]["units"]["t_ns"], "ns");
+    assert_eq!(j["markers"]["units"]["dx_px"], "px");
+    // The campaign: one table per kind over both runs, with the run named in each row.
+    let c = read(&campaign);
+    let both = csv_rows(&a.dir.join("force.csv")).len() + csv_rows(&b.dir.join("force.csv")).len();
+    assert_eq!(c["force"]["rows"], both);
+    assert_eq!(c["force"]["dtypes"]["run"], "category");
+    let names: Vec<String> = [&a.dir, &b.dir]
+        .iter()
+        .map(|d| d.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    let mut want = names.clone();
+    want.sort();
+    assert_eq!(c["force"]["runs"], serde_json::json!(want));
+    // A folder with no runs is refused with exit 2.
+    let e = Command::new(gelrig())
+        .arg("export")
+        .arg(tmp.path().join("one"))
+        .args(["--format", "parquet"])
+        .output()
+        .unwrap();
+    assert_eq!(e.status.code(), Some(2));
 }

@@ -14,7 +14,14 @@
 //! bench). `protocol.yaml`, `rig.yaml` and `run.yaml` travel as attachments, the manifest's
 //! protocol, status and seed as metadata.
 
+//!
+//! Parquet: every table of the run (force, axes, steps, frames, markers, contact, tactile,
+//! wrench, sim_steps) as a typed file with units in the field metadata; a folder of runs
+//! becomes one file per table with a `run` column ([`parquet_tables`]).
+
 mod cdr;
 mod mcap_file;
+pub mod parquet_tables;
 
 pub use mcap_file::{ExportError, Exported, export_mcap};
+pub use parquet_tables::{ParquetExport, export_parquet};

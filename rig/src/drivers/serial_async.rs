@@ -13,7 +13,7 @@ use std::pin::Pin;
 use std::task::{Context, Poll, ready};
 
 use nix::fcntl::OFlag;
-use nix::sys::termios::{self, BaudRate, ControlFlags, SetArg};
+use nix::sys::termios::{self, BaudRate, ControlFlags, FlushArg, SetArg};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use tokio::io::unix::AsyncFd;
@@ -65,6 +65,8 @@ fn is_pseudo_terminal(file: &File) -> bool {
 #[derive(Debug)]
 pub(crate) struct AsyncSerial {
     fd: AsyncFd<File>,
+    /// The last thing done was a write: the next write continues the same request.
+    writing: bool,
 }
 
 impl AsyncSerial {
@@ -105,16 +107,17 @@ impl AsyncSerial {
         // (forbidden in this workspace).
         #[allow(deprecated)]
         let fd = AsyncFd::new(file)?;
-        Ok(Self { fd })
+        Ok(Self { fd, writing: false })
     }
 }
 
 impl AsyncRead for AsyncSerial {
     fn poll_read(
-        self: Pin<&mut Self>,
+        mut self: Pin<&mut Self>,
         cx: &mut Context<'_>,
         buf: &mut ReadBuf<'_>,
     ) -> Poll<io::Result<()>> {
+        self.writing = false;
         loop {
             let mut guard = ready!(self.fd.poll_read_ready(cx))?;
             let unfilled = buf.initialize_unfilled();
@@ -136,10 +139,18 @@ impl AsyncRead for AsyncSerial {
 
 impl AsyncWrite for AsyncSerial {
     fn poll_write(
-        self: Pin<&mut Self>,
+        mut self: Pin<&mut Self>,
         cx: &mut Context<'_>,
         data: &[u8],
     ) -> Poll<io::Result<usize>> {
+        // A new request: drop whatever waits in the input — a reply that came after its
+        // request timed out would otherwise be read as the answer to this one, and every
+        // answer after it would be one behind (what RTU masters do before each request).
+        if !self.writing {
+            termios::tcflush(self.fd.get_ref(), FlushArg::TCIFLUSH)
+                .map_err(|e| ctx(e, "discarding stale input"))?;
+            self.writing = true;
+        }
         loop {
             let mut guard = ready!(self.fd.poll_write_ready(cx))?;
             match guard.try_io(|f| f.get_ref().write(data)) {
@@ -155,5 +166,44 @@ impl AsyncWrite for AsyncSerial {
 
     fn poll_shutdown(self: Pin<&mut Self>, _cx: &mut Context<'_>) -> Poll<io::Result<()>> {
         Poll::Ready(Ok(()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::{Read as _, Write as _};
+
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+    use super::*;
+
+    /// A reply that came after its request timed out waits in the input; the next request
+    /// must not read it as its own answer.
+    #[tokio::test]
+    async fn a_new_request_drops_a_late_reply_waiting_in_the_input() {
+        let (mut master, path) = crate::twins::pty::open_pair().expect("pty");
+        let mut port = AsyncSerial::open(&path, 19200, Parity::Even).expect("open");
+        // Request A; its reply comes only after the master gave up on it.
+        port.write_all(b"A?").await.expect("write");
+        let mut got = [0u8; 2];
+        master.read_exact(&mut got).expect("read A");
+        let mut late = [0u8; 1];
+        let pending = tokio::time::timeout(
+            std::time::Duration::from_millis(20),
+            port.read_exact(&mut late),
+        )
+        .await;
+        assert!(pending.is_err(), "nothing to read yet");
+        master.write_all(b"late-A").expect("late reply");
+        master.flush().expect("flush");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        // Request B, then its reply: only B's reply is read.
+        port.write_all(b"B?").await.expect("write");
+        master.read_exact(&mut got).expect("read B");
+        assert_eq!(&got, b"B?");
+        master.write_all(b"reply-B").expect("reply");
+        let mut reply = [0u8; 7];
+        port.read_exact(&mut reply).await.expect("read");
+        assert_eq!(&reply, b"reply-B");
     }
 }

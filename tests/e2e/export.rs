@@ -70,6 +70,16 @@ fn an_exported_run_reads_back_in_the_independent_mcap_reader() {
     assert_eq!(j["counts"]["/camera/image/compressed"], frames.len());
     assert_eq!(j["counts"]["/stages"], axes.len());
     assert_eq!(j["counts"]["/steps"], steps.len());
+    let tactile = csv_rows(&dir.join("tactile.csv"));
+    assert_eq!(j["counts"]["/tactile"], tactile.len());
+    assert_eq!(
+        j["first"]["/tactile"]["state"],
+        tactile[0]["state"].as_str()
+    );
+    assert_eq!(
+        j["first"]["/tactile"]["t_ns"].as_u64().unwrap().to_string(),
+        tactile[0]["t_ns"]
+    );
     // Every wrench: its time on the run's clock, forces in N, torques in N·m.
     for (row, m) in force.iter().zip(j["forces"].as_array().unwrap()) {
         let t: u64 = row["t_ns"].parse().unwrap();

@@ -25,7 +25,7 @@ with open(sys.argv[1], "rb") as f:
                 first[t] = dict(t=message.log_time, format=msg.format, n=len(msg.data), png=bytes(msg.data[:4]).hex())
             elif t == "/stages":
                 first[t] = dict(t=message.log_time, name=list(msg.name), pos=list(msg.position))
-            elif t == "/steps":
+            elif t in ("/steps", "/tactile"):
                 first[t] = json.loads(msg.data)
     f.seek(0)
     r = make_reader(f)

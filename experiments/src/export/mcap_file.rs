@@ -73,6 +73,27 @@ struct FrameFileRow {
     file: String,
 }
 
+/// A CSV row as JSON: integers stay integers, numbers numbers, `true`/`false` booleans, an
+/// empty cell null, the rest text.
+fn json_row(row: &BTreeMap<String, String>) -> serde_json::Map<String, serde_json::Value> {
+    row.iter()
+        .map(|(k, v)| {
+            let value = if v.is_empty() {
+                serde_json::Value::Null
+            } else if let Ok(i) = v.parse::<i64>() {
+                serde_json::Value::from(i)
+            } else if let Some(x) = v.parse::<f64>().ok().filter(|x| x.is_finite()) {
+                serde_json::Value::from(x)
+            } else if v == "true" || v == "false" {
+                serde_json::Value::from(v == "true")
+            } else {
+                serde_json::Value::from(v.clone())
+            };
+            (k.clone(), value)
+        })
+        .collect()
+}
+
 /// Writes `run_dir` as MCAP to `out`.
 pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> {
     if !run_dir.join("run.yaml").is_file() {
@@ -220,25 +241,29 @@ pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> 
                 .get("t_end_ns")
                 .and_then(|v| v.parse::<u64>().ok())
                 .unwrap_or(0);
-            let json: serde_json::Map<String, serde_json::Value> = row
-                .iter()
-                .map(|(k, v)| {
-                    // Integers stay integers, numbers numbers, the rest text.
-                    let value = if let Ok(i) = v.parse::<i64>() {
-                        serde_json::Value::from(i)
-                    } else if let Some(x) = v.parse::<f64>().ok().filter(|x| x.is_finite()) {
-                        serde_json::Value::from(x)
-                    } else if v == "true" || v == "false" {
-                        serde_json::Value::from(v == "true")
-                    } else {
-                        serde_json::Value::from(v.clone())
-                    };
-                    (k.clone(), value)
-                })
-                .collect();
             let mut c = Cdr::new();
-            c.string(&serde_json::Value::Object(json).to_string());
+            c.string(&serde_json::Value::Object(json_row(row)).to_string());
             put(&mut w, ch, "/steps", t, c.finish())?;
+        }
+    }
+    // The live tactile state of grasp trials: each row of `tactile.csv` as JSON at its frame.
+    let tactile_path = run_dir.join("tactile.csv");
+    if tactile_path.is_file() {
+        let rows: Vec<BTreeMap<String, String>> = read_csv(&tactile_path)?;
+        let ch = channel(
+            &mut w,
+            "std_msgs/msg/String",
+            definition("string data", &[]),
+            "/tactile",
+        )?;
+        for row in &rows {
+            let t = row
+                .get("t_ns")
+                .and_then(|v| v.parse::<u64>().ok())
+                .unwrap_or(0);
+            let mut c = Cdr::new();
+            c.string(&serde_json::Value::Object(json_row(row)).to_string());
+            put(&mut w, ch, "/tactile", t, c.finish())?;
         }
     }
     // The run's own files, and what it was.

@@ -9,6 +9,7 @@
 //! | `/camera/image/compressed` | `sensor_msgs/msg/CompressedImage` (the recorded PNGs) | `frames.csv`, `frames/` |
 //! | `/stages` | `sensor_msgs/msg/JointState` (m and rad, SI) | `axes.csv` |
 //! | `/steps` | `std_msgs/msg/String` (each step's row as JSON, at its end) | `steps.csv` |
+//! | `/tactile` | `std_msgs/msg/String` (each frame's tactile state as JSON) | `tactile.csv` |
 //!
 //! Timestamps are the run's timebase (virtual time from 0 on a dry run, CLOCK_MONOTONIC on a
 //! bench). `protocol.yaml`, `rig.yaml` and `run.yaml` travel as attachments, the manifest's

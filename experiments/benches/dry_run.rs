@@ -45,6 +45,7 @@ fn dry_run(c: &mut Criterion) {
                             seed: 0,
                             clock: ClockMode::Virtual,
                             progress: ProgressMode::Quiet,
+                            live: None,
                         },
                         Cancel::new(),
                     ))

@@ -141,6 +141,7 @@ fn main() {
                         seed,
                         clock: ClockMode::Virtual,
                         progress: ProgressMode::Quiet,
+                        live: None,
                     },
                     Cancel::new(),
                 ))
@@ -196,6 +197,7 @@ fn main() {
                         seed,
                         clock: ClockMode::Monotonic,
                         progress: ProgressMode::Quiet,
+                        live: None,
                     },
                     Cancel::new(),
                 ))

@@ -22,5 +22,6 @@ pub mod runner;
 pub mod runs;
 pub mod sensor;
 pub mod track;
+pub mod view;
 
 pub use diag::{Diagnostic, Severity};

@@ -5,7 +5,7 @@
 //! (virtual) time and, when that differs, wall time.
 
 use std::io::Write as _;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -38,6 +38,8 @@ pub struct Progress {
     tactile: Mutex<Option<String>>,
     /// The trial under way in a repeated block, and how many there are.
     trial: Mutex<Option<(u32, u32)>>,
+    /// The live view's board, with `--live`: it gets every line and phase the bar shows.
+    live: Option<Arc<liveview::Board>>,
 }
 
 impl Progress {
@@ -74,7 +76,19 @@ impl Progress {
             done: std::sync::atomic::AtomicU32::new(0),
             tactile: Mutex::new(None),
             trial: Mutex::new(None),
+            live: None,
         }
+    }
+
+    /// Also shows the run on the live view's `board`.
+    pub fn with_live(mut self, board: Option<Arc<liveview::Board>>) -> Self {
+        self.live = board;
+        self
+    }
+
+    /// The live view's board, when the run has one.
+    pub fn live(&self) -> Option<&liveview::Board> {
+        self.live.as_deref()
     }
 
     /// A repeated block's trial `trial` of `of` begins: the line and the step lines say so.
@@ -120,6 +134,14 @@ impl Progress {
     /// A step starts: `what` is e.g. `load normal → 0.336 mm`. Step 0 is the time between
     /// steps (homing, an approach, a trial's set-up).
     pub fn step(&self, step: u32, what: &str, phase: &str, t_s: f64) {
+        if let Some(b) = &self.live {
+            let trial = self
+                .trial
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .map_or(0, |(k, _)| k);
+            b.phase(step, trial, what, phase, (t_s * 1e9).max(0.0) as u64);
+        }
         if let Some(pb) = &self.bar {
             let done = self.done.load(std::sync::atomic::Ordering::Relaxed);
             pb.set_position(bar_position(step, done));
@@ -158,7 +180,7 @@ impl Progress {
 
     /// Refreshes the clock display at most a few times per wall second.
     pub fn tick(&self, step: u32, what: &str, phase: &str, t_s: f64) {
-        if self.bar.is_none() {
+        if self.bar.is_none() && self.live.is_none() {
             return;
         }
         let mut last = self
@@ -180,6 +202,9 @@ impl Progress {
         );
         self.done
             .fetch_max(step, std::sync::atomic::Ordering::Relaxed);
+        if let Some(b) = &self.live {
+            b.note(&text);
+        }
         if let Some(pb) = &self.bar {
             pb.set_position(step as u64);
             pb.println(text);
@@ -190,6 +215,9 @@ impl Progress {
 
     /// Something worth a line of its own (contact found, tare, safety trip).
     pub fn note(&self, line: &str) {
+        if let Some(b) = &self.live {
+            b.note(line);
+        }
         if let Some(pb) = &self.bar {
             pb.println(line);
         } else if self.plain {

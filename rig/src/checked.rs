@@ -139,6 +139,10 @@ impl ForceSensor for CheckedForce {
         self.inner.info()
     }
 
+    fn records_lost(&self) -> u64 {
+        self.inner.records_lost()
+    }
+
     async fn read(&mut self) -> Result<ForceSample, RigError> {
         let s = self.inner.read().await?;
         let info = self.inner.info();

@@ -303,6 +303,11 @@ pub trait ForceSensor: Send {
     fn info(&self) -> &ForceInfo;
     /// The most recent sample.
     async fn read(&mut self) -> Result<ForceSample, RigError>;
+    /// Records missing from the sensor's own sequence since it was opened (a Net F/T's
+    /// `rdt_sequence` gaps); 0 for a sensor that cannot tell.
+    fn records_lost(&self) -> u64 {
+        0
+    }
     /// Ground truth of a simulated bench at the current time; `None` for real sensors.
     async fn truth(&mut self) -> Option<SimTruth> {
         None

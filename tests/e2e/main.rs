@@ -11,6 +11,7 @@ mod force_sensing;
 mod fuzz;
 mod grasp;
 mod hostile;
+mod live;
 mod motion;
 mod peers;
 mod physics;

@@ -148,6 +148,7 @@ pub(crate) fn run_virtual(
                 seed,
                 clock: ClockMode::Virtual,
                 progress: ProgressMode::Quiet,
+                live: None,
             },
             cancel,
         )
@@ -286,6 +287,7 @@ pub(crate) fn run_on_real_rig(
                 seed: 0,
                 clock: rig::ClockMode::Monotonic,
                 progress: experiments::progress::ProgressMode::Quiet,
+                live: None,
             },
             experiments::runner::Cancel::new(),
         ))

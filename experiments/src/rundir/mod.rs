@@ -56,6 +56,8 @@ pub enum RunDirError {
 pub(crate) struct StepRow {
     pub step: u32,
     pub trial: u32,
+    #[serde(default)]
+    pub label: String,
     pub phase: String,
     pub axis: String,
     pub position: Option<f64>,
@@ -113,6 +115,9 @@ pub(crate) struct FrameRow {
     #[serde(default)]
     pub t_ns: u64,
     pub step: u32,
+    /// The camera's frame counter.
+    #[serde(default)]
+    pub seq: Option<u64>,
 }
 
 /// One row of `markers.csv`.
@@ -294,6 +299,10 @@ pub(crate) struct TactileCsvRow {
     pub trial: u32,
     pub state: String,
     pub gripping: bool,
+    #[serde(default)]
+    pub stuck_fraction: f64,
+    #[serde(default)]
+    pub gelsight_fz_n: Option<f64>,
     pub rotation_deg: f64,
     #[serde(default)]
     pub true_sliding: Option<bool>,

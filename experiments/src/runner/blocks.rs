@@ -389,6 +389,17 @@ impl Exec<'_> {
             t_end_ns: self.now(),
         };
         self.rec.step(&row)?;
+        if let Some(b) = self.progress.live() {
+            let point = liveview::CurvePoint {
+                step: row.step,
+                label: row.label.clone(),
+                axis: row.axis.clone(),
+                position: row.position.unwrap_or(f64::NAN),
+                unit: row.unit.clone(),
+                wrench: [row.fx_n, row.fy_n, row.fz_n, row.tz_nmm].map(|v| v.unwrap_or(f64::NAN)),
+            };
+            b.step_done(point, row.trial, row.t_start_ns, row.t_end_ns);
+        }
         if let Some(m) = &self.monitor
             && let Some(truth) = m.truth().await
         {

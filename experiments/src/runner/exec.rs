@@ -175,9 +175,15 @@ impl<'a> Exec<'a> {
                 self.window.push_back((s.t_ns, w, s.status));
             }
             self.latest = Some((s.t_ns, w));
+            if let Some(b) = self.progress.live() {
+                b.force(s.t_ns, [w.fx_n, w.fy_n, w.fz_n, w.tz_nmm]);
+            }
             if r.record {
                 self.rec.force(&s, &w, self.step, self.trial)?;
             }
+        }
+        if let Some(b) = self.progress.live() {
+            b.lost_records(m.records_lost());
         }
         let keep_from = self.now().saturating_sub(self.keep_ns.max(2_000_000_000));
         while self.window.front().is_some_and(|(t, _, _)| *t < keep_from) {
@@ -246,10 +252,10 @@ impl<'a> Exec<'a> {
         // Continuous frames feed the live tactile path; a new block starts a new reference.
         if self.next_frame_stream.is_some() {
             if self.tactile.is_none() {
-                self.tactile = Some(super::tactile::LiveTactile::new(
-                    self.mm_per_px,
-                    self.gelsight.as_deref(),
-                ));
+                let mut t =
+                    super::tactile::LiveTactile::new(self.mm_per_px, self.gelsight.as_deref());
+                t.want_overlay = self.progress.live().is_some();
+                self.tactile = Some(t);
             }
         } else if self.tactile.take().is_some() {
             self.progress.set_tactile(None);

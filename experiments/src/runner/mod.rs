@@ -81,6 +81,8 @@ pub struct RunRequest<'a> {
     pub clock: ClockMode,
     /// Progress display.
     pub progress: ProgressMode,
+    /// The live view's board (`gelrig run --live`); `None` serves nothing.
+    pub live: Option<std::sync::Arc<liveview::Board>>,
 }
 
 /// How a run ended.
@@ -143,7 +145,7 @@ fn clock_label(mode: ClockMode) -> String {
 }
 
 /// The clock's speed-up over the wall; `None` in virtual time.
-fn time_scale(mode: ClockMode) -> Option<f64> {
+pub(crate) fn time_scale(mode: ClockMode) -> Option<f64> {
     match mode {
         ClockMode::Virtual => None,
         ClockMode::Scaled { scale } => Some(scale),
@@ -180,6 +182,7 @@ pub fn run_virtual_blocking(
             seed,
             clock: ClockMode::Virtual,
             progress: crate::progress::ProgressMode::Quiet,
+            live: None,
         },
         Cancel::new(),
     ))
@@ -229,7 +232,11 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
         loaded.compiled.steps,
         req.plan.duration_s.max,
         time_scale(req.clock),
-    );
+    )
+    .with_live(req.live.clone());
+    if let Some(b) = progress.live() {
+        b.set_dir(&rec.dir().display().to_string());
+    }
     let _ = rec.journal(
         clock.now_ns(),
         "run_start",
@@ -412,6 +419,9 @@ fn finish(
         }
     });
     rec.close();
+    if let Some(b) = progress.live() {
+        b.finished(status.name(), message.as_deref());
+    }
     written?;
     Ok(RunOutcome {
         dir: rec.dir().to_path_buf(),

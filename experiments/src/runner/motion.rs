@@ -223,6 +223,16 @@ impl Exec<'_> {
         };
         let frame = cam.capture().await?;
         let index = self.rec.frame(&frame, self.step, self.trial)?;
+        if let (Some(b), Some(i)) = (self.progress.live(), index) {
+            // In a frame stream the camera's counter steps by its rate over the stream's.
+            let fps = cam.info().fps;
+            let stride = (self.next_frame_stream.is_some())
+                .then_some(self.active.frames_hz)
+                .flatten()
+                .map(|hz| (fps / hz).round().max(1.0) as u64);
+            let size = (frame.width, frame.height);
+            b.frame(i, frame.t_ns, (frame.seq, stride), size, &frame.rgb);
+        }
         if self.tactile.is_some() {
             let truth = match &self.monitor {
                 Some(m) => m.truth().await,
@@ -268,6 +278,18 @@ impl Exec<'_> {
                     String::new()
                 }
             )));
+            if let Some(b) = self.progress.live() {
+                b.tactile(liveview::Tactile {
+                    state: row.state.clone(),
+                    gripping: row.gripping,
+                    stuck_fraction: row.stuck_fraction,
+                    t_s: row.t_ns as f64 * 1e-9,
+                    gelsight_fz_n: row.gelsight_fz_n,
+                });
+                if let Some(o) = self.tactile.as_ref().and_then(|t| t.overlay(index)) {
+                    b.overlay(o);
+                }
+            }
             self.rec.tactile(&row)?;
         }
         if let Some(level) = self.slip_stop

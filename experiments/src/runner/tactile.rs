@@ -35,6 +35,9 @@ pub(super) struct LiveTactile {
     gelsight_memory: Option<analysis::force_sensor::memory::Memory>,
     /// Why the GelSight's force cannot be read in this block, until handed out.
     gelsight_error: Option<String>,
+    /// The live view watches: keep the last frame's arrows and contact outline for it.
+    pub(super) want_overlay: bool,
+    overlay: Option<liveview::Overlay>,
 }
 
 impl LiveTactile {
@@ -50,7 +53,14 @@ impl LiveTactile {
             mm_per_px,
             failed: None,
             reported: false,
+            want_overlay: false,
+            overlay: None,
         }
+    }
+
+    /// The arrows and contact outline of frame `index`, when it was the last tracked.
+    pub(super) fn overlay(&self, index: u64) -> Option<liveview::Overlay> {
+        self.overlay.as_ref().filter(|o| o.index == index).cloned()
     }
 
     /// Why tracking stopped in this block, the first time it is asked after it did.
@@ -158,6 +168,13 @@ impl LiveTactile {
         let contact = pipeline
             .contact()
             .map(|c| (c.outline_px.as_slice(), c.area_px2));
+        if self.want_overlay {
+            let outline = pipeline
+                .contact()
+                .map(|c| c.outline_px.as_slice())
+                .unwrap_or_default();
+            self.overlay = Some(liveview::overlay::from_field(index, &field, outline));
+        }
         if self.pending_pressing {
             self.monitor.set_pressing(&field, contact);
             self.pending_pressing = false;

@@ -142,12 +142,20 @@ impl Exec<'_> {
                         track.verdict = Some("timeout");
                         return Ok(());
                     }
-                    if fresh
-                        && elapsed >= track.min_ns
+                    let bound = fresh
+                        .then(|| track.drift_bound(&self.window, now))
+                        .flatten();
+                    if let (Some(board), Some(b)) = (self.progress.live(), bound) {
+                        let unit = if track.channel.is_torque() {
+                            "N·mm/s"
+                        } else {
+                            "N/s"
+                        };
+                        board.settle(track.start_ns, now, b, track.below, unit);
+                    }
+                    if elapsed >= track.min_ns
                         && elapsed >= track.window_ns
-                        && track
-                            .drift_bound(&self.window, now)
-                            .is_some_and(|b| b < track.below)
+                        && bound.is_some_and(|b| b < track.below)
                     {
                         track.verdict = Some("converged");
                         return Ok(());

@@ -121,6 +121,8 @@ pub(crate) struct Trip {
 struct State {
     readings: VecDeque<Reading>,
     dropped: u64,
+    /// Records the sensor's own sequence lost, as of its last reading.
+    sensor_lost: u64,
     stream_hz: Option<f64>,
     stream_epoch: u64,
     tare: Wrench,
@@ -172,6 +174,7 @@ impl Monitor {
         let state = Arc::new(Mutex::new(State {
             readings: VecDeque::new(),
             dropped: 0,
+            sensor_lost: 0,
             stream_hz: None,
             stream_epoch: 0,
             tare: Wrench::default(),
@@ -213,6 +216,13 @@ impl Monitor {
     /// Takes every reading queued since the last call, oldest first.
     pub(crate) fn take(&self) -> VecDeque<Reading> {
         std::mem::take(&mut lock(&self.state).readings)
+    }
+
+    /// Force records lost: missing from the sensor's sequence, or dropped because the plan
+    /// task did not take them in time.
+    pub(crate) fn records_lost(&self) -> u64 {
+        let s = lock(&self.state);
+        s.sensor_lost + s.dropped
     }
 
     /// Readings dropped because the plan task did not take them in time.
@@ -404,7 +414,9 @@ impl Watch {
         let deadline = self.clock.now_ns() + self.config.stale_ns;
         let read = async {
             let mut sensor = self.sensor.lock().await;
-            sensor.read().await
+            let r = sensor.read().await;
+            lock(&self.state).sensor_lost = sensor.records_lost();
+            r
         };
         // Biased: a sensor that answers at once (the simulated one, a queued datagram)
         // never registers the timeout's timer.

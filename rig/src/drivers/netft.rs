@@ -343,6 +343,10 @@ impl ForceSensor for NetFtSensor {
         &self.info
     }
 
+    fn records_lost(&self) -> u64 {
+        self.stats.lost
+    }
+
     async fn read(&mut self) -> Result<ForceSample, RigError> {
         let before = self.stats.received;
         self.receive(false).await?;

@@ -65,6 +65,8 @@ enum Command {
     Calibrate(cmd::calibrate::Cmd),
     /// Write a run as MCAP with ROS 2 messages (Foxglove, Rerun, ros2 bag play).
     Export(cmd::export::Cmd),
+    /// Open finished runs in the browser: runs with their status, plots, frames, reports.
+    View(cmd::view::Cmd),
     /// Check that every device of a rig file answers (identity, calibration, position).
     Probe(cmd::probe::Cmd),
     /// Simulated devices on real transports: `gelrig sim serve --rig R.yaml`.
@@ -84,6 +86,7 @@ fn main() -> ExitCode {
         Command::Report(c) => c.run(),
         Command::Calibrate(c) => c.run(),
         Command::Export(c) => c.run(),
+        Command::View(c) => c.run(),
         Command::Probe(c) => c.run(),
         Command::Sim(c) => c.run(),
     };

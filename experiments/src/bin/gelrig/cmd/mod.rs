@@ -12,6 +12,7 @@ pub(crate) mod schema;
 pub(crate) mod sim;
 pub(crate) mod track;
 pub(crate) mod validate;
+pub(crate) mod view;
 
 use std::path::Path;
 use std::process::ExitCode;
@@ -90,4 +91,22 @@ pub(crate) fn report(diags: &[Diagnostic]) {
     let errors = diags.iter().filter(|d| d.is_error()).count();
     let warnings = diags.len() - errors;
     err!("{errors} error(s), {warnings} warning(s)");
+}
+
+/// Starts the live view's server on `addr` (`HOST:PORT`; port 0 for a free one), warning
+/// when the address is not loopback: anyone who can reach it can watch (never steer) the run.
+pub(crate) fn serve(
+    addr: &str,
+    library: std::sync::Arc<dyn liveview::Library>,
+) -> anyhow::Result<liveview::Server> {
+    use anyhow::Context as _;
+    let parsed: std::net::SocketAddr = addr.parse().with_context(|| {
+        format!("`{addr}`: not an address; fix: write HOST:PORT, e.g. 127.0.0.1:8080 (port 0: any free port)")
+    })?;
+    if !parsed.ip().is_loopback() {
+        err!(
+            "warning: serving on {parsed}, not loopback: anyone who can reach this machine can watch (the page cannot move anything)"
+        );
+    }
+    Ok(liveview::Server::start(parsed, library)?)
 }

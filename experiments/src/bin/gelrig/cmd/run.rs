@@ -36,6 +36,10 @@ pub(crate) struct Cmd {
     /// No progress output.
     #[arg(long)]
     quiet: bool,
+    /// Watch the run in a browser: serves a read-only page on ADDR (default 127.0.0.1 and a
+    /// free port) and prints its URL. Without it, the run opens no socket.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
+    live: Option<String>,
 }
 
 impl Cmd {
@@ -69,6 +73,21 @@ impl Cmd {
             err!("interrupted before the run started: nothing ran, no run directory");
             return Ok(ExitCode::from(130));
         }
+        let board = self
+            .live
+            .is_some()
+            .then(|| liveview::Board::new(experiments::view::live_meta(&loaded, &plan, clock)));
+        let server = match (&self.live, &board) {
+            (Some(addr), Some(b)) => {
+                let server = super::serve(
+                    addr,
+                    std::sync::Arc::new(experiments::view::LiveRun { board: b.clone() }),
+                )?;
+                err!("live view: {}", server.url());
+                Some(server)
+            }
+            _ => None,
+        };
         // Virtual time: tokio's paused clock jumps to the next timer whenever the run waits;
         // it needs the single-threaded runtime. On a real (or scaled) clock the watchdog
         // gets a worker thread of its own, so nothing the plan computes can delay it.
@@ -92,11 +111,17 @@ impl Cmd {
                 seed: self.seed,
                 clock,
                 progress: mode,
+                live: board,
             },
             cancel.clone(),
         ));
         // A device open abandoned by an interrupt may still be computing: don't wait for it.
         runtime.shutdown_background();
+        if let Some(server) = server {
+            // The page's next poll shows how the run ended before the server goes.
+            std::thread::sleep(std::time::Duration::from_millis(1500));
+            drop(server);
+        }
         let outcome = outcome.context("recording the run")?;
         out!("{}", outcome.dir.display());
         let status = outcome.status.name();

@@ -46,11 +46,12 @@ fn dry_run(c: &mut Criterion) {
                             clock: ClockMode::Virtual,
                             progress: ProgressMode::Quiet,
                             live: None,
+                            record_mcap: false,
                         },
                         Cancel::new(),
                     ))
                     .expect("run directory");
-                assert_eq!(outcome.status, experiments::record::Status::Completed);
+                assert_eq!(outcome.status, rundir::write::Status::Completed);
             })
         });
     }

@@ -65,7 +65,7 @@ fn once(file: &Path, live: bool) -> (f64, u64) {
             let mut k = 0u64;
             while !done.load(Ordering::Relaxed) {
                 let mut n = get(&host, "/run/live/state.json");
-                if k % 2 == 0 {
+                if k.is_multiple_of(2) {
                     n += get(&host, "/run/live/frame.png");
                     n += get(&host, "/run/live/overlay.json");
                 }
@@ -91,12 +91,13 @@ fn once(file: &Path, live: bool) -> (f64, u64) {
                 clock: ClockMode::Virtual,
                 progress: ProgressMode::Quiet,
                 live: board,
+                record_mcap: false,
             },
             Cancel::new(),
         ))
         .expect("run");
     let wall = started.elapsed().as_secs_f64();
-    assert_eq!(outcome.status, experiments::record::Status::Completed);
+    assert_eq!(outcome.status, rundir::write::Status::Completed);
     done.store(true, Ordering::Relaxed);
     if let Some(c) = client {
         let _ = c.join();

@@ -142,6 +142,7 @@ fn main() {
                         clock: ClockMode::Virtual,
                         progress: ProgressMode::Quiet,
                         live: None,
+                        record_mcap: false,
                     },
                     Cancel::new(),
                 ))
@@ -198,6 +199,7 @@ fn main() {
                         clock: ClockMode::Monotonic,
                         progress: ProgressMode::Quiet,
                         live: None,
+                        record_mcap: false,
                     },
                     Cancel::new(),
                 ))

@@ -338,6 +338,6 @@ pub fn write_bound(served: &Served, path: &Path) -> std::io::Result<()> {
     let text = serde_yaml::to_string(&served.bound).map_err(std::io::Error::other)?;
     let header =
         "# Written by `gelrig sim serve`: the rig file with the twins' addresses filled in.\n";
-    crate::record::write_atomic(path, format!("{header}{text}").as_bytes())
+    rundir::write::write_atomic(path, format!("{header}{text}").as_bytes())
         .map_err(std::io::Error::other)
 }

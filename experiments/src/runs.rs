@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::record::{Status, is_locked, read_manifest};
+use rundir::write::{Status, is_locked, read_manifest};
 
 /// What `gelrig runs` shows for one run.
 #[derive(Debug, Clone, PartialEq)]

@@ -9,7 +9,7 @@ use std::time::SystemTime;
 
 use liveview::{Board, CurvePoint, Library, RunEntry, RunMeta, Tactile};
 
-use crate::rundir::{ForceRow, FrameRow, RunDirError, StepRow, TactileCsvRow, read_optional};
+use crate::run_data::{ForceRow, FrameRow, RunDirError, StepRow, TactileCsvRow, read_optional};
 
 /// The board's meta of a run about to start on `clock`.
 pub fn live_meta(
@@ -192,7 +192,7 @@ impl Library for RunsOnDisk {
         if out.join("report.html").is_file() {
             return Ok(out);
         }
-        if crate::record::is_locked(&dir) {
+        if rundir::write::is_locked(&dir) {
             return Err(format!(
                 "{id} is still running: its report is made once it has ended"
             ));
@@ -207,7 +207,7 @@ impl Library for RunsOnDisk {
 /// A finished (or interrupted) run read into a board: its force, steps, first and last
 /// frames, and last tactile state.
 pub fn read_board(dir: &Path) -> Result<Arc<Board>, RunDirError> {
-    let manifest = crate::record::read_manifest(dir).map_err(|detail| RunDirError::Missing {
+    let manifest = rundir::write::read_manifest(dir).map_err(|detail| RunDirError::Missing {
         path: dir.join("run.yaml"),
         detail,
     })?;
@@ -233,7 +233,7 @@ pub fn read_board(dir: &Path) -> Result<Arc<Board>, RunDirError> {
     for f in read_optional::<ForceRow>(&dir.join("force.csv"))?.unwrap_or_default() {
         board.force(f.t_ns, [f.fx_n, f.fy_n, f.fz_n, f.tz_nmm]);
     }
-    let steps = crate::rundir::read_csv::<StepRow>(&dir.join("steps.csv"))?;
+    let steps = crate::run_data::read_csv::<StepRow>(&dir.join("steps.csv"))?;
     for s in &steps {
         let point = CurvePoint {
             step: s.step,

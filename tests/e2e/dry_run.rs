@@ -4,7 +4,7 @@
 use std::collections::BTreeSet;
 use std::process::Command;
 
-use experiments::record::Status;
+use rundir::write::Status;
 
 use crate::support::{
     SHIPPED, col, csv_rows, gelrig, image_size, load_ok, load_text, manifest, protocol,

@@ -35,6 +35,13 @@ fn an_exported_run_reads_back_in_the_independent_mcap_reader() {
     let loaded = load_text(tmp.path(), &text).unwrap();
     let (o, _) = run_virtual(&loaded, tmp.path(), 3, None);
     let dir = o.dir;
+    // Tracked, so its markers go in too.
+    let t = Command::new(gelrig())
+        .arg("track")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(t.status.success(), "{}", String::from_utf8_lossy(&t.stderr));
     let out = tmp.path().join("trial.mcap");
     let e = Command::new(gelrig())
         .args(["export"])
@@ -55,9 +62,77 @@ fn an_exported_run_reads_back_in_the_independent_mcap_reader() {
     if !readers_available() {
         return;
     }
+    let j = check_mcap(&dir, &out, "lifting-can", "3");
+    // Markers: one ImageMarker per tracked frame, a line per measured marker from its
+    // reference to where it is.
+    let markers = csv_rows(&dir.join("markers.csv"));
+    let mut frames_tracked: Vec<&str> = markers.iter().map(|r| r["frame"].as_str()).collect();
+    frames_tracked.dedup();
+    assert_eq!(j["counts"]["/camera/markers"], frames_tracked.len());
+    let m = &j["first"]["/camera/markers"];
+    assert_eq!(m["type"], 2, "LINE_LIST");
+    let first_frame: Vec<_> = markers
+        .iter()
+        .filter(|r| r["frame"] == frames_tracked[0])
+        .filter(|r| r["state"] == "tracked" || r["state"] == "merged")
+        .collect();
+    assert_eq!(m["n"].as_u64().unwrap() as usize, 2 * first_frame.len());
+    if let Some(r) = first_frame.first() {
+        let v = |c: &str| r[c].parse::<f64>().unwrap();
+        assert!((m["p1"][0].as_f64().unwrap() - v("x_px")).abs() < 1e-9);
+        assert!((m["p0"][1].as_f64().unwrap() - (v("y_px") - v("dy_px"))).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn a_run_recorded_as_mcap_while_it_goes_reads_back_like_its_csvs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let r = Command::new(gelrig())
+        .args([
+            "run",
+            "lifting-can",
+            "--set",
+            "sequence.2.repeat.times=1",
+            "--seed",
+            "4",
+        ])
+        .args(["--record", "mcap", "--quiet", "--out"])
+        .arg(tmp.path())
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let dir = std::path::PathBuf::from(String::from_utf8_lossy(&r.stdout).trim());
+    let mcap = dir.join("run.mcap");
+    assert!(mcap.is_file(), "no run.mcap in {}", dir.display());
+    // Without --record, none.
+    let plain = Command::new(gelrig())
+        .args(["run", "box-normal-flat", "--quiet", "--out"])
+        .arg(tmp.path())
+        .current_dir(root())
+        .output()
+        .unwrap();
+    let plain_dir = std::path::PathBuf::from(String::from_utf8_lossy(&plain.stdout).trim());
+    assert!(plain_dir.join("run.yaml").is_file() && !plain_dir.join("run.mcap").exists());
+    if !readers_available() {
+        return;
+    }
+    let j = check_mcap(&dir, &mcap, "lifting-can-df382d", "4");
+    assert_eq!(j["metadata"][0]["status"], "completed");
+}
+
+/// Reads `mcap` with the independent readers and checks it against the run's CSVs: every
+/// wrench (time, N, N·m), every frame (time, the recorded PNG's size), stage positions in
+/// SI, steps and the grasp's tactile state as JSON, attachments and metadata.
+fn check_mcap(
+    dir: &std::path::Path,
+    mcap: &std::path::Path,
+    protocol: &str,
+    seed: &str,
+) -> serde_json::Value {
     let r = Command::new("python3")
         .arg(root().join("tests/peers/read_mcap.py"))
-        .arg(&out)
+        .arg(mcap)
         .output()
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
@@ -130,8 +205,9 @@ fn an_exported_run_reads_back_in_the_independent_mcap_reader() {
         .map(|v| v.as_str().unwrap())
         .collect();
     assert_eq!(atts, ["protocol.yaml", "rig.yaml", "run.yaml"]);
-    assert_eq!(j["metadata"][0]["protocol"], "lifting-can");
-    assert_eq!(j["metadata"][0]["seed"], "3");
+    assert_eq!(j["metadata"][0]["protocol"], protocol);
+    assert_eq!(j["metadata"][0]["seed"], seed);
+    j
 }
 
 #[test]

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use experiments::record::Status;
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
+use rundir::write::Status;
 
 use crate::support::{
     csv_rows, gelrig, manifest, protocol, run_on_real_rig, wait_for_event, wait_for_event_within,

@@ -13,7 +13,7 @@ use crate::support::{csv_rows, gelrig, load_ok, protocol, run_virtual, shared_dr
 /// A shipped protocol dry-run with `seed` into `dir`.
 fn dry(name: &str, seed: u64, dir: &Path) -> PathBuf {
     let (o, _) = run_virtual(&load_ok(&protocol(name)), dir, seed, None);
-    assert_eq!(o.status, experiments::record::Status::Completed, "{name}");
+    assert_eq!(o.status, rundir::write::Status::Completed, "{name}");
     o.dir
 }
 
@@ -346,7 +346,7 @@ fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
     let (o, _) = run_virtual(&loaded, tmp.path(), 2, None);
     assert_eq!(
         o.status,
-        experiments::record::Status::Completed,
+        rundir::write::Status::Completed,
         "{:?}",
         o.message
     );
@@ -417,7 +417,7 @@ fn a_grasp_calibrated_in_its_jig_reads_the_relaxing_squeeze() {
     let can = |seed: u64, dir: &str| {
         let loaded = crate::support::load_text(&tmp.path().join(dir), &text).unwrap();
         let (o, _) = run_virtual(&loaded, &tmp.path().join(dir), seed, None);
-        assert_eq!(o.status, experiments::record::Status::Completed);
+        assert_eq!(o.status, rundir::write::Status::Completed);
         o.dir
     };
     std::fs::create_dir_all(tmp.path().join("cal")).unwrap();

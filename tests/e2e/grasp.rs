@@ -5,7 +5,7 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use experiments::record::Status;
+use rundir::write::Status;
 
 use crate::support::{csv_rows, load_text, manifest, run_virtual, shipped_text};
 

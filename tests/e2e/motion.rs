@@ -6,11 +6,11 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use experiments::record::Status;
 use rig::drivers::modbus::ModbusMap;
 use rig::lock;
 use rig::twins::modbus::ModbusTwin;
 use rig::twins::motion::Timing;
+use rundir::write::Status;
 
 use crate::support::{
     col, csv_rows, run_on_real_rig, sim_wire_rotation, to_short_form, wait_for_event,

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use experiments::record::Status;
+use rundir::write::Status;
 
 use crate::support::{col, csv_rows, root, run_on_real_rig, sim_wire_rotation, to_short_form};
 

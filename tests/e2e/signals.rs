@@ -7,9 +7,9 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use experiments::record::Status;
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
+use rundir::write::Status;
 
 use crate::support::{csv_rows, gelrig, manifest, protocol, runs_listing};
 

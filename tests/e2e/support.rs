@@ -149,6 +149,7 @@ pub(crate) fn run_virtual(
                 clock: ClockMode::Virtual,
                 progress: ProgressMode::Quiet,
                 live: None,
+                record_mcap: false,
             },
             cancel,
         )
@@ -177,7 +178,7 @@ pub(crate) fn shared_dry_run(name: &str) -> PathBuf {
     let (outcome, _) = run_virtual(&loaded, &out, 1, None);
     assert_eq!(
         outcome.status,
-        experiments::record::Status::Completed,
+        rundir::write::Status::Completed,
         "{name}: {:?}",
         outcome.message
     );
@@ -213,8 +214,8 @@ pub(crate) fn col(rows: &[std::collections::BTreeMap<String, String>], name: &st
 }
 
 /// The run manifest.
-pub(crate) fn manifest(dir: &Path) -> experiments::record::Manifest {
-    experiments::record::read_manifest(dir).unwrap()
+pub(crate) fn manifest(dir: &Path) -> rundir::write::Manifest {
+    rundir::write::read_manifest(dir).unwrap()
 }
 
 /// Width and height of a PNG file.
@@ -288,6 +289,7 @@ pub(crate) fn run_on_real_rig(
                 clock: rig::ClockMode::Monotonic,
                 progress: experiments::progress::ProgressMode::Quiet,
                 live: None,
+                record_mcap: false,
             },
             experiments::runner::Cancel::new(),
         ))

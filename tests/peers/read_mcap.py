@@ -1,6 +1,6 @@
 """Reads a gelrig MCAP export with the independent Python readers (mcap, mcap-ros2-support)
 and prints, as JSON, the message count per topic, every /force message's time and wrench,
-each frame's time, format and byte count, the first stage and step messages, the attachments
+each frame's time, format and byte count, the first stage, step and marker messages, the attachments
 and the metadata. Used by tests/e2e/export.rs."""
 import sys, json
 from mcap.reader import make_reader
@@ -27,6 +27,10 @@ with open(sys.argv[1], "rb") as f:
                 first[t] = dict(t=message.log_time, name=list(msg.name), pos=list(msg.position))
             elif t in ("/steps", "/tactile"):
                 first[t] = json.loads(msg.data)
+            elif t == "/camera/markers":
+                first[t] = dict(t=message.log_time, ns=msg.ns, id=msg.id, type=msg.type,
+                    n=len(msg.points), p0=[msg.points[0].x, msg.points[0].y] if msg.points else None,
+                    p1=[msg.points[1].x, msg.points[1].y] if msg.points else None)
     f.seek(0)
     r = make_reader(f)
     atts = [a.name for a in r.iter_attachments()]

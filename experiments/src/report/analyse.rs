@@ -353,7 +353,7 @@ fn sim_truth(data: &RunData, b: &Block, step: u32) -> Option<f64> {
 
 /// The field at the end of step `step` (its last frame).
 fn step_field(data: &RunData, step: u32) -> Option<MarkerField> {
-    crate::rundir::frame_field(data, data.last_frame_of(step)?)
+    crate::run_data::frame_field(data, data.last_frame_of(step)?)
 }
 
 pub(super) fn spacing_px(f: &MarkerField) -> f64 {

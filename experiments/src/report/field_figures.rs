@@ -49,7 +49,7 @@ pub(super) fn figures(data: &RunData, b: &Block, out: &Out) -> Result<Vec<String
         let Some(frame) = data.last_frame_of(s.step) else {
             continue;
         };
-        let Some(field) = crate::rundir::frame_field(data, frame) else {
+        let Some(field) = crate::run_data::frame_field(data, frame) else {
             continue;
         };
         let interp = interpolator.get_or_insert_with(|| {

@@ -1,6 +1,6 @@
 //! `gelrig report`: a run directory turned into the thesis's results.
 //!
-//! The run is read through [`crate::rundir`] (which tracks its frames when `markers.csv` is
+//! The run is read through [`crate::run_data`] (which tracks its frames when `markers.csv` is
 //! missing); this module builds the reference fields from the run's own protocol and hands
 //! numbers to the pure analyses in [`analysis`]; [`write`] renders what comes back as
 //! `report/report.html` (self-contained), `report/report.md`, SVG/PNG plots and
@@ -24,11 +24,11 @@ mod write;
 
 use std::path::{Path, PathBuf};
 
-pub use crate::rundir::RunDirError as ReportError;
-pub(crate) use crate::rundir::{ForceRow, RunData, StepRow, read_run};
+pub(crate) use crate::run_data::{ForceRow, RunData, StepRow, read_run};
 pub use analyse::Report;
 pub use compare::compare;
 pub use headline::headline;
+pub use rundir::read::RunDirError as ReportError;
 
 /// Where the report went and its headline numbers.
 #[derive(Debug, Clone)]

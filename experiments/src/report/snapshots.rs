@@ -107,7 +107,7 @@ pub(super) fn write(data: &RunData, t: &TrialResult, dir: &Path) -> Result<Pictu
     };
     let mut out = Vec::new();
     for (name, frame) in moments(data, t) {
-        let Some(total) = crate::rundir::frame_field(data, frame) else {
+        let Some(total) = crate::run_data::frame_field(data, frame) else {
             continue;
         };
         let file = format!("trial_{:03}_{name}_total.svg", t.trial);
@@ -121,7 +121,7 @@ pub(super) fn write(data: &RunData, t: &TrialResult, dir: &Path) -> Result<Pictu
         ));
         if let Some(before) = frame
             .checked_sub(1)
-            .and_then(|f| crate::rundir::frame_field(data, f))
+            .and_then(|f| crate::run_data::frame_field(data, f))
         {
             let file = format!("trial_{:03}_{name}_differential.svg", t.trial);
             let m = picture(&differential(&total, &before), size, &dir.join(&file))?;

@@ -27,7 +27,7 @@ use serde_json::{Value, json};
 
 use super::RunData;
 use super::plots::{Chart, Series};
-use crate::rundir::TactileCsvRow;
+use crate::run_data::TactileCsvRow;
 
 /// One trial's results.
 #[derive(Debug, Clone, PartialEq)]

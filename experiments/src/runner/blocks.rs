@@ -12,7 +12,7 @@ use super::settle::SettleTrack;
 use super::wait::Until;
 use crate::protocol::compile::{ApproachSpec, DisturbSpec, SettleSpec, Step, Target};
 use crate::protocol::schema::{Channel, OnTimeout};
-use crate::record::StepRow;
+use rundir::write::StepRow;
 
 /// Squeeze above which a grip move ends still holding, N.
 const GRIPPING_N: f64 = 0.2;
@@ -389,6 +389,10 @@ impl Exec<'_> {
             t_end_ns: self.now(),
         };
         self.rec.step(&row)?;
+        if let Some(msg) = self.rec.mcap_failure() {
+            self.progress.note(&format!("warning: {msg}"));
+            self.rec.update_manifest(|m| m.warnings.push(msg))?;
+        }
         if let Some(b) = self.progress.live() {
             let point = liveview::CurvePoint {
                 step: row.step,

@@ -11,7 +11,7 @@ use super::{Cancel, Stop, trip_record};
 use crate::progress::Progress;
 use crate::protocol::Loaded;
 use crate::protocol::compile::{Action, ActionKind, StreamRates};
-use crate::record::{Recorder, Status};
+use rundir::write::{Recorder, Status};
 
 /// The plan task.
 pub(super) struct Exec<'a> {

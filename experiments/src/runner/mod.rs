@@ -37,7 +37,7 @@ use serde_json::json;
 use crate::plan::Plan;
 use crate::progress::{Progress, ProgressMode};
 use crate::protocol::{Loaded, plant_spec};
-use crate::record::{DeviceRecord, Manifest, RecordError, Recorder, Status};
+use rundir::write::{DeviceRecord, Manifest, RecordError, Recorder, Status};
 
 pub use cancel::Cancel;
 use exec::Exec;
@@ -83,6 +83,8 @@ pub struct RunRequest<'a> {
     pub progress: ProgressMode,
     /// The live view's board (`gelrig run --live`); `None` serves nothing.
     pub live: Option<std::sync::Arc<liveview::Board>>,
+    /// Also write `run.mcap` as the run goes (`gelrig run --record mcap`).
+    pub record_mcap: bool,
 }
 
 /// How a run ended.
@@ -183,6 +185,7 @@ pub fn run_virtual_blocking(
             clock: ClockMode::Virtual,
             progress: crate::progress::ProgressMode::Quiet,
             live: None,
+            record_mcap: false,
         },
         Cancel::new(),
     ))
@@ -227,6 +230,9 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
     // The resolved protocol (sensor defaults filled in) is what actually ran.
     let protocol_yaml = serde_yaml::to_string(p).unwrap_or_else(|_| loaded.text.clone());
     let mut rec = Recorder::create(&req.out, manifest, &protocol_yaml, &loaded.rig_text)?;
+    if req.record_mcap {
+        rec.record_mcap(&loaded.rig_text)?;
+    }
     let progress = Progress::new(
         req.progress,
         loaded.compiled.steps,
@@ -418,6 +424,11 @@ fn finish(
             _ => {}
         }
     });
+    rec.finish_mcap();
+    if let Some(msg) = rec.mcap_failure() {
+        progress.note(&format!("warning: {msg}"));
+        let _ = rec.update_manifest(|m| m.warnings.push(msg));
+    }
     rec.close();
     if let Some(b) = progress.live() {
         b.finished(status.name(), message.as_deref());

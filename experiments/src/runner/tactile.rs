@@ -14,7 +14,7 @@ use analysis::tactile::{SlipState, TactileFrame, TactileMonitor, TactileParams};
 use analysis::tracking::{ContactParams, Method, Pipeline, RgbView, TrackParams};
 use rig::{Frame, SimTruth};
 
-use crate::record::TactileRow;
+use rundir::write::TactileRow;
 
 /// One record block's tactile state.
 pub(super) struct LiveTactile {

@@ -22,7 +22,7 @@ use super::file::{
     RunRef, ScaleSettings, TractionSettings, VERSION, View,
 };
 use super::{SensorError, SensorFile, reference_at, run_frames, run_mm_per_px, unfit};
-use crate::rundir::{ForceRow, StepRow, read_run};
+use crate::run_data::{ForceRow, StepRow, read_run};
 use analysis::force_sensor::memory::{self, HeldStep};
 
 /// One calibration frame.
@@ -89,7 +89,7 @@ struct Pending {
 const PRESSING_AXES: [&str; 2] = ["normal", "grip"];
 
 /// The held steps of the pressing axis in `data`, with the force while each held.
-fn held_steps(data: &crate::rundir::RunData) -> Vec<HeldStep> {
+fn held_steps(data: &crate::run_data::RunData) -> Vec<HeldStep> {
     data.steps
         .iter()
         .filter(|s| PRESSING_AXES.contains(&s.axis.as_str()) && s.settle_s >= 10.0)

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use analysis::field::MarkerField;
 
-use crate::rundir::{ForceRow, RunData};
+use crate::run_data::{ForceRow, RunData};
 
 pub use calibrate::calibrate;
 pub use file::{SensorFile, SensorFileError};
@@ -25,7 +25,7 @@ pub use wrench::{WrenchRow, frames_of_markers, read_wrench, wrench_of_markers, w
 pub enum SensorError {
     /// A run could not be read.
     #[error(transparent)]
-    Run(#[from] crate::rundir::RunDirError),
+    Run(#[from] crate::run_data::RunDirError),
     /// A run lacks what calibration or reading needs.
     #[error("{path}: {detail}; fix: {fix}")]
     Unfit {
@@ -71,7 +71,7 @@ pub struct RunFrame {
 /// The frames of a run directory with their fields and contact regions (tracked first if
 /// it has no `markers.csv`).
 pub fn load_frames(run_dir: &Path) -> Result<Vec<RunFrame>, SensorError> {
-    Ok(run_frames(&crate::rundir::read_run(run_dir)?))
+    Ok(run_frames(&crate::run_data::read_run(run_dir)?))
 }
 
 /// The frames of a run with their fields (frame 0, the reference, first).
@@ -84,7 +84,7 @@ pub(crate) fn run_frames(data: &RunData) -> Vec<RunFrame> {
                 t_ns: f.t_ns,
                 step: f.step,
                 contact: contact_of(&data.contact, f.frame),
-                field: crate::rundir::frame_field(data, f.frame)?,
+                field: crate::run_data::frame_field(data, f.frame)?,
             })
         })
         .collect()
@@ -92,7 +92,7 @@ pub(crate) fn run_frames(data: &RunData) -> Vec<RunFrame> {
 
 /// The contact region of `frame` in `contact.csv` rows: centroid and equivalent radius, px.
 pub(crate) fn contact_of(
-    rows: &[crate::rundir::ContactRow],
+    rows: &[crate::run_data::ContactRow],
     frame: u64,
 ) -> Option<([f64; 2], f64)> {
     rows.iter()
@@ -112,7 +112,7 @@ pub(crate) fn reference_at(data: &RunData, step: u32, t_ns: u64) -> Option<[f64;
 /// elastic force).
 pub(crate) fn reference_in(
     force: &[ForceRow],
-    steps: &[crate::rundir::StepRow],
+    steps: &[crate::run_data::StepRow],
     step: u32,
     t_ns: u64,
 ) -> Option<[f64; 4]> {
@@ -157,7 +157,7 @@ pub(crate) fn wrench_at(force: &[ForceRow], t_ns: u64) -> Option<[f64; 4]> {
 
 /// Frame number → (time, step) of a run directory's frames (empty when it has none).
 pub fn frame_times(run_dir: &Path) -> std::collections::BTreeMap<u64, (u64, u32)> {
-    crate::rundir::read_csv::<crate::rundir::FrameRow>(&run_dir.join("frames.csv"))
+    crate::run_data::read_csv::<crate::run_data::FrameRow>(&run_dir.join("frames.csv"))
         .map(|rows| {
             rows.into_iter()
                 .map(|r| (r.frame, (r.t_ns, r.step)))

@@ -9,7 +9,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::{RunFrame, SensorError, SensorFile, unfit};
-use crate::rundir::MarkerRow;
+use crate::run_data::MarkerRow;
 
 /// One frame's wrench read from the GelSight.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -99,7 +99,7 @@ pub(crate) fn wrench_of_frames(
 
 /// The wrench of every frame of a run directory (tracked first if it has no markers.csv).
 pub fn read_wrench(sensor: &SensorFile, run_dir: &Path) -> Result<Vec<WrenchRow>, SensorError> {
-    let data = crate::rundir::read_run(run_dir)?;
+    let data = crate::run_data::read_run(run_dir)?;
     wrench_of_frames(sensor, &super::run_frames(&data), run_dir)
 }
 
@@ -119,10 +119,10 @@ pub fn frames_of_markers(
     markers_csv: &Path,
     times: &BTreeMap<u64, (u64, u32)>,
 ) -> Result<Vec<RunFrame>, SensorError> {
-    let rows: Vec<MarkerRow> = crate::rundir::read_csv(markers_csv)?;
+    let rows: Vec<MarkerRow> = crate::run_data::read_csv(markers_csv)?;
     let contact_csv = markers_csv.with_file_name("contact.csv");
-    let contact: Vec<crate::rundir::ContactRow> = if contact_csv.is_file() {
-        crate::rundir::read_csv(&contact_csv)?
+    let contact: Vec<crate::run_data::ContactRow> = if contact_csv.is_file() {
+        crate::run_data::read_csv(&contact_csv)?
     } else {
         Vec::new()
     };
@@ -137,7 +137,7 @@ pub fn frames_of_markers(
             t_ns: times.get(&frame).map_or(0, |t| t.0),
             step: times.get(&frame).map_or(0, |t| t.1),
             contact: super::contact_of(&contact, frame),
-            field: crate::rundir::field_of_rows(rows),
+            field: crate::run_data::field_of_rows(rows),
         })
         .collect())
 }

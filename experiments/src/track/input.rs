@@ -120,7 +120,7 @@ pub(super) fn frame_list(input: &Input) -> Result<FrameList, TrackFailure> {
             entries.sort_by_key(|e| e.frame);
             let mut files = std::collections::HashMap::new();
             for e in &entries {
-                let path = crate::record::run_file(dir, &e.file).map_err(|d| TrackFailure::RunDir {
+                let path = rundir::write::run_file(dir, &e.file).map_err(|d| TrackFailure::RunDir {
                     dir: dir.clone(),
                     detail: format!(
                         "frames.csv, frame {}: {d}; fix: frames.csv must name files under frames/",

@@ -63,7 +63,7 @@ enum Command {
     Report(cmd::report::Cmd),
     /// Calibrate the GelSight as a force sensor on runs with frames and force: SENSOR.yaml.
     Calibrate(cmd::calibrate::Cmd),
-    /// Write a run as MCAP with ROS 2 messages (Foxglove, Rerun, ros2 bag play).
+    /// Write a run as MCAP with ROS 2 messages (Foxglove, Rerun, ros2 bag play) or Parquet.
     Export(cmd::export::Cmd),
     /// Open finished runs in the browser: runs with their status, plots, frames, reports.
     View(cmd::view::Cmd),

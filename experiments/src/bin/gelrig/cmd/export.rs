@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use experiments::export::{ExportError, export_mcap, export_parquet};
+use rundir::export::{ExportError, export_mcap, export_parquet};
 
 /// Write a run in a format other tools open: MCAP with ROS 2 messages (Foxglove, Rerun,
 /// `ros2 bag play`), or Parquet tables (pandas; a folder of runs becomes one table per kind

@@ -5,9 +5,9 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use experiments::progress::ProgressMode;
-use experiments::record::Status;
 use experiments::runner::{Cancel, RunRequest, run};
 use rig::ClockMode;
+use rundir::write::Status;
 
 /// Run a protocol.
 #[derive(clap::Args)]
@@ -40,6 +40,10 @@ pub(crate) struct Cmd {
     /// free port) and prints its URL. Without it, the run opens no socket.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
     live: Option<String>,
+    /// Also write the run as it goes in another format, beside the CSVs: `mcap` writes
+    /// `run.mcap` (ROS 2 messages, as `gelrig export --format mcap` does).
+    #[arg(long, value_name = "FORMAT", value_parser = ["mcap"])]
+    record: Option<String>,
 }
 
 impl Cmd {
@@ -112,6 +116,7 @@ impl Cmd {
                 clock,
                 progress: mode,
                 live: board,
+                record_mcap: self.record.as_deref() == Some("mcap"),
             },
             cancel.clone(),
         ));

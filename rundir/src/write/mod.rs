@@ -22,6 +22,7 @@
 mod files;
 mod frame_writer;
 mod manifest;
+mod mcap_live;
 mod rows;
 
 use std::fs::{self, File, OpenOptions};
@@ -78,6 +79,8 @@ pub struct Recorder {
     frames: Option<FrameWriter>,
     sim_steps: Option<CsvFile>,
     tactile: Option<CsvFile>,
+    /// `run.mcap`, with `gelrig run --record mcap`.
+    mcap: Option<mcap_live::LiveMcap>,
     frame_count: u64,
     reserve: Reserve,
     /// The first write failure; data is no longer written once set.
@@ -171,6 +174,7 @@ impl Recorder {
             frames: None,
             sim_steps: None,
             tactile: None,
+            mcap: None,
             frame_count: 0,
             reserve,
             broken: None,
@@ -178,6 +182,21 @@ impl Recorder {
         };
         rec.write_manifest()?;
         Ok(rec)
+    }
+
+    /// Also writes the run as it goes to `run.mcap` (ROS 2 messages, as `gelrig export
+    /// --format mcap` writes them); `rig_yaml` tells which axes are rotary. Before any data.
+    pub fn record_mcap(&mut self, rig_yaml: &str) -> Result<(), RecordError> {
+        let m = mcap_live::LiveMcap::create(&self.dir.join("run.mcap"), rig_yaml)?;
+        self.mcap = Some(m);
+        Ok(())
+    }
+
+    /// Why `run.mcap` stopped being written, once (the CSVs go on).
+    pub fn mcap_failure(&self) -> Option<String> {
+        self.mcap
+            .as_ref()
+            .and_then(mcap_live::LiveMcap::new_failure)
     }
 
     /// The run directory.
@@ -285,6 +304,14 @@ impl Recorder {
             ft_seq: s.ft_seq,
             status: s.status,
         };
+        if let Some(m) = &self.mcap
+            && self.broken.is_none()
+        {
+            let v = [
+                row.fx_n, row.fy_n, row.fz_n, row.tx_nmm, row.ty_nmm, row.tz_nmm,
+            ];
+            m.with(|w, _| w.wrench(row.t_ns, v));
+        }
         self.data(|r| append_to(&mut r.force, r.dir.join("force.csv"), &row))
             .map(|_| ())
     }
@@ -303,6 +330,14 @@ impl Recorder {
             target: target.map(round6),
             position: round6(position),
         };
+        if let Some(m) = &self.mcap
+            && self.broken.is_none()
+        {
+            m.with(|w, rotary| {
+                let rot = rotary.iter().any(|a| a == axis);
+                w.joint(t_ns, axis, crate::ros2::si(row.position, rot))
+            });
+        }
         self.data(|r| append_to(&mut r.axes, r.dir.join("axes.csv"), &row))
             .map(|_| ())
     }
@@ -322,7 +357,7 @@ impl Recorder {
         if self.frames.is_none() {
             let d = self.dir.join("frames");
             fs::create_dir_all(&d).map_err(io(&d))?;
-            self.frames = Some(FrameWriter::start(self.dir.clone())?);
+            self.frames = Some(FrameWriter::start(self.dir.clone(), self.mcap.clone())?);
         }
         let n = self.frame_count;
         if let Some(w) = &mut self.frames {
@@ -361,12 +396,14 @@ impl Recorder {
 
     /// Appends a frame's live tactile state to `tactile.csv`.
     pub fn tactile(&mut self, row: &TactileRow) -> Result<(), RecordError> {
+        self.json_message(crate::ros2::Topic::Tactile, row.t_ns, row);
         self.data(|r| append_to(&mut r.tactile, r.dir.join("tactile.csv"), row))
             .map(|_| ())
     }
 
     /// Appends a step row and makes it, and everything recorded before it, durable.
     pub fn step(&mut self, row: &StepRow) -> Result<(), RecordError> {
+        self.json_message(crate::ros2::Topic::Steps, row.t_end_ns, row);
         self.data(|r| {
             r.steps.row(row)?;
             r.steps.sync()?;
@@ -385,6 +422,14 @@ impl Recorder {
         .map(|_| ())
     }
 
+    /// A row as a JSON message of `run.mcap`, when the run writes one.
+    fn json_message<T: serde::Serialize>(&self, topic: crate::ros2::Topic, t_ns: u64, row: &T) {
+        if let (Some(m), None) = (&self.mcap, &self.broken) {
+            let text = serde_json::to_string(row).unwrap_or_default();
+            m.with(|w, _| w.json(topic, t_ns, &text));
+        }
+    }
+
     /// Frames written so far.
     pub fn frames_written(&self) -> u64 {
         self.frame_count
@@ -396,6 +441,15 @@ impl Recorder {
         match self.frames.as_mut().map(FrameWriter::finish) {
             Some(Err(e)) => Err(self.fail(e)),
             _ => Ok(()),
+        }
+    }
+
+    /// Completes `run.mcap`, if the run writes one: the run's files, its manifest (as it
+    /// stands: call it after the final status) and the summary. Then [`Self::mcap_failure`]
+    /// says whether the file is whole.
+    pub fn finish_mcap(&mut self) {
+        if let Some(m) = &self.mcap {
+            m.finish(&self.dir, &self.manifest);
         }
     }
 

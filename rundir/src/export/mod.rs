@@ -7,6 +7,7 @@
 //! |---|---|---|
 //! | `/force` | `geometry_msgs/msg/WrenchStamped` (N and N·m, SI) | `force.csv` |
 //! | `/camera/image/compressed` | `sensor_msgs/msg/CompressedImage` (the recorded PNGs) | `frames.csv`, `frames/` |
+//! | `/camera/markers` | `visualization_msgs/msg/ImageMarker` (LINE_LIST: each marker from its reference to where it is, px) | `markers.csv` (a tracked run) |
 //! | `/stages` | `sensor_msgs/msg/JointState` (m and rad, SI) | `axes.csv` |
 //! | `/steps` | `std_msgs/msg/String` (each step's row as JSON, at its end) | `steps.csv` |
 //! | `/tactile` | `std_msgs/msg/String` (each frame's tactile state as JSON) | `tactile.csv` |
@@ -20,7 +21,6 @@
 //! wrench, sim_steps) as a typed file with units in the field metadata; a folder of runs
 //! becomes one file per table with a `run` column ([`parquet_tables`]).
 
-mod cdr;
 mod mcap_file;
 pub mod parquet_tables;
 

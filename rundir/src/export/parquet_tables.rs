@@ -21,7 +21,7 @@ use arrow_array::{
 use arrow_schema::{DataType, Field, Schema};
 
 use super::ExportError;
-use crate::rundir::RunDirError;
+use crate::read::RunDirError;
 
 /// The tables exported, where a run has them.
 pub const TABLES: [&str; 9] = [

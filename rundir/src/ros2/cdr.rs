@@ -34,6 +34,25 @@ impl Cdr {
         self
     }
 
+    pub(super) fn u8(&mut self, v: u8) -> &mut Self {
+        self.buf.push(v);
+        self
+    }
+
+    pub(super) fn f32(&mut self, v: f32) -> &mut Self {
+        self.align(4);
+        self.buf.extend(v.to_le_bytes());
+        self
+    }
+
+    /// Four `float32` fields in a row (a `std_msgs/ColorRGBA`).
+    pub(super) fn f32x4(&mut self, v: [f32; 4]) -> &mut Self {
+        for x in v {
+            self.f32(x);
+        }
+        self
+    }
+
     pub(super) fn f64(&mut self, v: f64) -> &mut Self {
         self.align(8);
         self.buf.extend(v.to_le_bytes());

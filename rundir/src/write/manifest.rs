@@ -20,6 +20,24 @@ pub enum Status {
     Failed,
 }
 
+impl Manifest {
+    /// What the run was, in a line per key (the MCAP file's `gelrig_run` metadata).
+    pub fn headline(&self) -> std::collections::BTreeMap<String, String> {
+        [
+            ("protocol", self.protocol.clone()),
+            ("status", self.status.name().to_string()),
+            ("seed", self.seed.to_string()),
+            ("rig", self.rig.clone()),
+            ("started_utc", self.started_utc.clone()),
+            ("gelrig_version", self.gelrig_version.clone()),
+            ("clock", self.clock.clone()),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+    }
+}
+
 impl Status {
     /// Lower-case name.
     pub fn name(self) -> &'static str {

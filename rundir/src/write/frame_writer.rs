@@ -46,14 +46,17 @@ pub(super) struct FrameWriter {
 
 impl FrameWriter {
     /// Starts the thread writing into run directory `dir` (its `frames/` exists).
-    pub(super) fn start(dir: PathBuf) -> Result<Self, RecordError> {
+    pub(super) fn start(
+        dir: PathBuf,
+        mcap: Option<super::mcap_live::LiveMcap>,
+    ) -> Result<Self, RecordError> {
         let (tx, rx) = sync_channel::<Job>(QUEUE);
         let error = Arc::new(Mutex::new(None));
         let slot = Arc::clone(&error);
         let frames = CsvFile::create(dir.join("frames.csv"))?;
         let handle = std::thread::Builder::new()
             .name("frame-writer".into())
-            .spawn(move || run(dir, frames, rx, slot))
+            .spawn(move || run(dir, frames, rx, slot, mcap))
             .map_err(|e| RecordError::Io {
                 path: PathBuf::from("frames"),
                 source: e,
@@ -147,11 +150,12 @@ fn run(
     mut frames: CsvFile,
     rx: Receiver<Job>,
     error: Arc<Mutex<Option<RecordError>>>,
+    mcap: Option<super::mcap_live::LiveMcap>,
 ) {
     let mut markers: Option<CsvFile> = None;
     while let Ok(job) = rx.recv() {
         let done = match job {
-            Job::Frame(f) => write(&dir, &mut frames, &mut markers, &f),
+            Job::Frame(f) => write(&dir, &mut frames, &mut markers, &f, mcap.as_ref()),
             Job::Sync(ack) => {
                 let synced = [Some(&mut frames), markers.as_mut()]
                     .into_iter()
@@ -173,6 +177,7 @@ fn write(
     frames: &mut CsvFile,
     markers: &mut Option<CsvFile>,
     job: &FrameJob,
+    mcap: Option<&super::mcap_live::LiveMcap>,
 ) -> Result<(), RecordError> {
     let FrameJob {
         n,
@@ -208,6 +213,9 @@ fn write(
         )
         .map_err(|e| frame_err(e.to_string()))?;
     write_new(&path, &png)?;
+    if let Some(m) = mcap {
+        m.with(|w, _| w.png(frame.t_ns, &png));
+    }
     frames.row(&FrameRow {
         frame: *n,
         t_ns: frame.t_ns,

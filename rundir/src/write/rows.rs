@@ -93,7 +93,7 @@ pub(super) fn round6(v: f64) -> f64 {
     (v * 1e6).round() / 1e6
 }
 
-#[derive(Serialize)]
+#[derive(Serialize, Default)]
 pub(super) struct ForceRow {
     pub(super) t_ns: u64,
     pub(super) step: u32,
@@ -108,7 +108,7 @@ pub(super) struct ForceRow {
     pub(super) status: u32,
 }
 
-#[derive(Serialize)]
+#[derive(Serialize, Default)]
 pub(super) struct AxesRow<'a> {
     pub(super) t_ns: u64,
     pub(super) axis: &'a str,
@@ -124,7 +124,7 @@ pub(super) struct MarkerTruthRow {
     pub(super) y_px: f64,
 }
 
-#[derive(Serialize)]
+#[derive(Serialize, Default)]
 pub(super) struct SimStepRow {
     pub(super) step: u32,
     pub(super) trial: u32,
@@ -144,7 +144,7 @@ pub(super) struct SimStepRow {
     pub(super) object_slips: u32,
 }
 
-#[derive(Serialize)]
+#[derive(Serialize, Default)]
 pub(super) struct FrameRow<'a> {
     pub(super) frame: u64,
     pub(super) t_ns: u64,
@@ -156,7 +156,7 @@ pub(super) struct FrameRow<'a> {
 
 /// One row of `tactile.csv`: a frame's live tactile state in a grasp (thesis §6.3) and, on
 /// a simulated bench, the truth it is scored against.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct TactileRow {
     /// Frame number (as in `frames.csv`).
     pub frame: u64,
@@ -225,4 +225,128 @@ pub struct TactileRow {
     pub gelsight_fz_sd_n: Option<f64>,
     /// Of `gelsight_tz_nmm`, N·mm.
     pub gelsight_tz_sd_nmm: Option<f64>,
+}
+
+/// Every reader's view of a table asks only for columns the writer writes: a column renamed
+/// or dropped here fails this test, not a report months later.
+#[cfg(test)]
+mod views {
+    use serde::de::{self, Deserialize, Visitor};
+
+    use super::*;
+    use crate::read;
+
+    /// The fields a `Deserialize` type asks a deserializer for.
+    struct Fields(Vec<&'static str>);
+
+    #[derive(Debug)]
+    struct Stop;
+    impl std::fmt::Display for Stop {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("stop")
+        }
+    }
+    impl std::error::Error for Stop {}
+    impl de::Error for Stop {
+        fn custom<T: std::fmt::Display>(_: T) -> Self {
+            Stop
+        }
+    }
+
+    impl<'de> de::Deserializer<'de> for &mut Fields {
+        type Error = Stop;
+        fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Stop> {
+            Err(Stop)
+        }
+        fn deserialize_struct<V: Visitor<'de>>(
+            self,
+            _: &'static str,
+            fields: &'static [&'static str],
+            _: V,
+        ) -> Result<V::Value, Stop> {
+            self.0 = fields.to_vec();
+            Err(Stop)
+        }
+        serde::forward_to_deserialize_any! {
+            bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes
+            byte_buf option unit unit_struct newtype_struct seq tuple tuple_struct map enum
+            identifier ignored_any
+        }
+    }
+
+    fn asked<T: for<'de> Deserialize<'de>>() -> Vec<&'static str> {
+        let mut f = Fields(Vec::new());
+        let _ = T::deserialize(&mut f);
+        f.0
+    }
+
+    fn header<T: Serialize>(row: &T) -> Vec<String> {
+        let mut w = csv::Writer::from_writer(Vec::new());
+        w.serialize(row).expect("row");
+        let bytes = w.into_inner().expect("flush");
+        let text = String::from_utf8(bytes).expect("utf-8");
+        text.lines()
+            .next()
+            .unwrap_or("")
+            .split(',')
+            .map(str::to_string)
+            .collect()
+    }
+
+    fn check(table: &str, view: Vec<&'static str>, written: Vec<String>) {
+        assert!(!view.is_empty(), "{table}: the view lists no field");
+        for f in view {
+            assert!(
+                written.iter().any(|w| w == f),
+                "{table}: readers ask for `{f}`, which the writer does not write ({written:?})"
+            );
+        }
+    }
+
+    #[test]
+    fn readers_ask_only_for_columns_the_writer_writes() {
+        check(
+            "steps.csv",
+            asked::<read::StepRow>(),
+            header(&StepRow::example()),
+        );
+        check(
+            "force.csv",
+            asked::<read::ForceRow>(),
+            header(&ForceRow::default()),
+        );
+        check(
+            "sim_steps.csv",
+            asked::<read::SimRow>(),
+            header(&SimStepRow::default()),
+        );
+        check(
+            "frames.csv",
+            asked::<read::FrameRow>(),
+            header(&FrameRow::default()),
+        );
+        check(
+            "tactile.csv",
+            asked::<read::TactileCsvRow>(),
+            header(&TactileRow::default()),
+        );
+    }
+
+    #[test]
+    fn the_check_catches_a_column_the_writer_lacks() {
+        #[derive(serde::Deserialize)]
+        #[allow(dead_code)]
+        struct Renamed {
+            t_ns: u64,
+            fz_newtons: f64,
+        }
+        let r = std::panic::catch_unwind(|| {
+            check(
+                "force.csv",
+                asked::<Renamed>(),
+                header(&ForceRow::default()),
+            )
+        });
+        assert!(r.is_err());
+    }
 }

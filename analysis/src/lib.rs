@@ -21,6 +21,7 @@
 //! - [`field_force`]: force from the displacement field against a reference field.
 //! - [`tactile`]: a grasp's slip state frame by frame (stick, incipient, slip).
 
+pub mod equilibrium;
 pub mod field;
 pub mod field_force;
 pub mod force_sensor;

@@ -400,6 +400,19 @@ fn settle_text(s: &SettleSpec) -> String {
             rig::units::fmt_value(*min_s),
             rig::units::fmt_value(*max_s)
         ),
+        SettleSpec::Adaptive {
+            channel,
+            tolerance,
+            min_s,
+            max_s,
+            ..
+        } => format!(
+            "{}∞ known within {} % (adaptive), {}–{} s",
+            channel.label(),
+            rig::units::fmt_value(tolerance * 100.0),
+            rig::units::fmt_value(*min_s),
+            rig::units::fmt_value(*max_s)
+        ),
     }
 }
 

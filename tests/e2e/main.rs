@@ -18,6 +18,7 @@ mod physics;
 mod plan;
 mod report;
 mod report_cli;
+mod settle;
 mod signals;
 mod support;
 mod track;

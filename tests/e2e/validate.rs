@@ -452,3 +452,44 @@ fn a_rig_that_does_not_resolve_and_protocols_by_name() {
         "{list}"
     );
 }
+
+#[test]
+fn an_adaptive_settle_is_checked_where_it_is_written() {
+    let base = shipped_text("box-normal-flat");
+    let with = |rule: &str| {
+        edit(
+            &base,
+            "settle: {fixed: 180 s}",
+            &format!("settle: {{{rule}}}"),
+        )
+    };
+    let line = line_of(&base, "settle: {fixed");
+    let d = error_with(
+        &with("adaptive: {tolerance: 0 %, min: 20 s, max: 300 s}"),
+        "cannot be met",
+    );
+    assert_eq!(d.line, line);
+    let d = error_with(
+        &with("adaptive: {tolerance: 1, min: 20 s, max: 300 s}"),
+        "not a percentage",
+    );
+    assert_eq!(d.line, line);
+    error_with(
+        &with("adaptive: {tolerance: 1 %, min: 5 s, max: 300 s}"),
+        "shorter than the capture's force window",
+    );
+    error_with(
+        &with("adaptive: {tolerance: 1 %, min: 60 s, max: 30 s}"),
+        "is below min",
+    );
+    // A good one loads, and the plan says what it waits for.
+    let dir = tempfile::tempdir().unwrap();
+    let loaded = load_text(
+        dir.path(),
+        &with("adaptive: {tolerance: 1 %, min: 20 s, max: 300 s}"),
+    )
+    .unwrap();
+    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let text = format!("{plan:?}");
+    assert!(plan.duration_s.max > plan.duration_s.min, "{text}");
+}

@@ -364,6 +364,79 @@ pub enum Settle {
     Fixed(Duration),
     /// Until the signal's rate of change stays below a threshold over a window.
     Rate(RateSettle),
+    /// Until the equilibrium value F∞, fitted to the relaxation as it goes, is known within
+    /// a tolerance (with an honest uncertainty; README "Choosing a settle rule").
+    Adaptive(AdaptiveSettle),
+}
+
+/// Adaptive settling: stop once F∞ is known within `tolerance`.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptiveSettle {
+    /// Signal watched; default: the component along the stepped axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub signal: Option<Channel>,
+    /// How well F∞ must be known: twice its standard uncertainty, as a percentage of |F∞|
+    /// (e.g. `1 %`).
+    pub tolerance: Tolerance,
+    /// Never settle sooner than this.
+    pub min: Duration,
+    /// Give up waiting after this (the step keeps its F∞ and uncertainty, verdict `timeout`).
+    pub max: Duration,
+    /// What a timeout does.
+    #[serde(default)]
+    pub on_timeout: OnTimeout,
+}
+
+/// A relative tolerance written as a percentage (`1 %`); the value is the fraction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerance(f64);
+
+impl Tolerance {
+    /// The tolerance as a fraction (1 % → 0.01).
+    pub fn fraction(self) -> f64 {
+        self.0
+    }
+}
+
+impl std::fmt::Display for Tolerance {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} %", rig::units::fmt_value(self.0 * 100.0))
+    }
+}
+
+impl Serialize for Tolerance {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> Deserialize<'de> for Tolerance {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let text = String::deserialize(d)?;
+        let number = text.trim().strip_suffix('%').map(str::trim);
+        match number.and_then(|n| n.parse::<f64>().ok()) {
+            Some(v) if v.is_finite() => Ok(Self(v / 100.0)),
+            _ => Err(serde::de::Error::custom(format!(
+                "`{text}` is not a percentage; fix: write it like `1 %`"
+            ))),
+        }
+    }
+}
+
+impl JsonSchema for Tolerance {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "Tolerance".into()
+    }
+    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        schemars::json_schema!({
+            "type": "string",
+            "title": "Tolerance",
+            "description": "a relative tolerance as a percentage, e.g. `1 %`",
+            "pattern": r"^\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*%\s*$",
+            "examples": ["1 %"],
+        })
+    }
 }
 
 /// Rate-based settling.
@@ -425,6 +498,17 @@ impl Channel {
             Channel::Fz => w.fz_n,
             Channel::Tz => w.tz_nmm,
         }
+    }
+
+    /// `w` with this channel's component replaced by `v`.
+    pub fn with(self, mut w: rig::Wrench, v: f64) -> rig::Wrench {
+        match self {
+            Channel::Fx => w.fx_n = v,
+            Channel::Fy => w.fy_n = v,
+            Channel::Fz => w.fz_n = v,
+            Channel::Tz => w.tz_nmm = v,
+        }
+        w
     }
 
     /// As written in the lab: `Fz`, `Tz`.

@@ -224,6 +224,8 @@ impl Exec<'_> {
         };
         let settle_window_ns = match s.settle {
             SettleSpec::Rate { window_s, .. } => (window_s * 1e9) as u64,
+            // The whole relaxation is fitted.
+            SettleSpec::Adaptive { max_s, .. } => (max_s * 1e9) as u64,
             _ => 0,
         };
         self.keep_ns = ((s.force_window_s * 1e9) as u64).max(settle_window_ns) + 1_000_000_000;
@@ -264,8 +266,64 @@ impl Exec<'_> {
                 .await?;
         }
         let settle_start = self.now();
+        let mut adaptive = None;
         let verdict = match s.settle {
             SettleSpec::None => "none",
+            SettleSpec::Adaptive {
+                channel,
+                tolerance,
+                min_s,
+                max_s,
+                on_timeout,
+            } => {
+                self.set_phase("settling");
+                let mut until = Until::Adaptive(super::adaptive::AdaptiveTrack {
+                    channel,
+                    tolerance,
+                    start_ns: settle_start,
+                    min_ns: (min_s * 1e9) as u64,
+                    max_ns: (max_s * 1e9) as u64,
+                    window_s: s.force_window_s.max(1.0),
+                    next_ns: settle_start,
+                    last: None,
+                    verdict: None,
+                });
+                self.wait(&mut until).await?;
+                let Until::Adaptive(track) = until else {
+                    unreachable!("the adaptive wait keeps its kind")
+                };
+                let verdict = track.verdict.unwrap_or("timeout");
+                self.gel.settled(&track, &self.window);
+                if let Some(msg) = self.gel.newly_learned() {
+                    self.progress.note(&msg);
+                    let t = self.now();
+                    self.rec
+                        .journal(t, "gel_time_constants", json!({ "note": msg }), false)?;
+                }
+                if verdict == "timeout" {
+                    let msg = format!(
+                        "step {}: {}∞ was not known within {} % after the whole {} s settle{}",
+                        s.step,
+                        channel.label(),
+                        fmt_value(tolerance * 100.0),
+                        fmt_value(max_s),
+                        track.last.as_ref().map_or(String::new(), |e| format!(
+                            " (F∞ {} ± {} {}{})",
+                            fmt_value((e.f_inf * 1e4).round() / 1e4),
+                            fmt_value((e.sigma * 1e4).round() / 1e4),
+                            if channel.is_torque() { "N·mm" } else { "N" },
+                            if e.drifting { ", still drifting" } else { "" }
+                        ))
+                    );
+                    if on_timeout == OnTimeout::Abort {
+                        return Err(Stop::SettleTimeout(msg));
+                    }
+                    self.progress.note(&format!("warning: {msg}"));
+                    self.rec.update_manifest(|m| m.warnings.push(msg))?;
+                }
+                adaptive = Some(track);
+                verdict
+            }
             SettleSpec::Fixed { s: secs } => {
                 self.set_phase(if s.disturb.is_some() {
                     "disturbing"
@@ -319,6 +377,7 @@ impl Exec<'_> {
         };
         let settle_end = self.now();
         let settle_s = (settle_end - settle_start) as f64 * 1e-9;
+        let f_inf = adaptive.as_ref().and_then(|a| a.last.clone());
         // Quasistatic value: mean over the last window (thesis §4.3), or the last sample.
         let t_end_window = self.now();
         let from = t_end_window.saturating_sub((s.force_window_s * 1e9) as u64);
@@ -357,6 +416,17 @@ impl Exec<'_> {
             None => (None, None),
         };
         let round = |v: f64| (v * 1e6).round() / 1e6 + 0.0;
+        // Adaptive settling: the quasistatic value of the settled channel is F∞; its window
+        // mean stays in its own column.
+        let settled_channel = match s.settle {
+            SettleSpec::Adaptive { channel, .. } => Some(channel),
+            _ => None,
+        };
+        let window_mean = settled_channel.zip(mean).map(|(c, m)| round(c.of(&m)));
+        let mean = match (settled_channel, &f_inf, mean) {
+            (Some(c), Some(e), Some(m)) if e.f_inf.is_finite() => Some(c.with(m, e.f_inf)),
+            (_, _, m) => m,
+        };
         let row = StepRow {
             step: s.step,
             trial: self.trial,
@@ -387,6 +457,9 @@ impl Exec<'_> {
             t_start_ns: t_start,
             settle_end_ns: settle_end,
             t_end_ns: self.now(),
+            f_inf: f_inf.as_ref().map(|e| round(e.f_inf)),
+            f_inf_sigma: f_inf.as_ref().map(|e| round(e.sigma)),
+            window_mean,
         };
         self.rec.step(&row)?;
         if let Some(msg) = self.rec.mcap_failure() {

@@ -44,6 +44,8 @@ pub(super) struct Exec<'a> {
     /// The newest tared sample, recorded or not (contact detection uses every reading).
     pub(super) latest: Option<(u64, Wrench)>,
     pub(super) keep_ns: u64,
+    /// What the run has learned of the gel's relaxation (adaptive settling).
+    pub(super) gel: super::adaptive::GelMemory,
     pub(super) step_saturated: bool,
     pub(super) retracting: bool,
     pub(super) what: String,
@@ -111,6 +113,7 @@ impl<'a> Exec<'a> {
             window: VecDeque::new(),
             latest: None,
             keep_ns: 0,
+            gel: Default::default(),
             step_saturated: false,
             retracting: false,
             what: String::new(),

@@ -18,6 +18,7 @@
 //! retract position there ([`retract`]), record final positions, write the manifest's final
 //! status. Ctrl-C (or SIGTERM) wakes any wait and aborts; a second one gives up the retract.
 
+mod adaptive;
 mod blocks;
 mod cancel;
 mod exec;

@@ -51,6 +51,8 @@ pub(super) enum Until {
     Time(u64),
     /// The settle criterion holds (or times out).
     Settle(SettleTrack),
+    /// F∞ is known within the tolerance (or the settle times out).
+    Adaptive(super::adaptive::AdaptiveTrack),
     /// This many more frames have been captured.
     Frames(u32),
     /// |force along `channel`| reaches `threshold` while the axis of `deadline` moves.
@@ -161,6 +163,36 @@ impl Exec<'_> {
                         return Ok(());
                     }
                     deadline = track.start_ns + track.max_ns;
+                }
+                Until::Adaptive(track) => {
+                    let elapsed = now.saturating_sub(track.start_ns);
+                    if elapsed >= track.max_ns {
+                        // One last fit on the whole record: the step keeps its F∞ and σ.
+                        let settled = track.judge(&self.window, now, &self.gel);
+                        track.verdict = Some(if settled { "converged" } else { "timeout" });
+                        return Ok(());
+                    }
+                    if elapsed >= track.min_ns && now >= track.next_ns {
+                        let settled = track.judge(&self.window, now, &self.gel);
+                        if let (Some(board), Some((stat, band))) =
+                            (self.progress.live(), track.band(&self.gel))
+                        {
+                            let unit = if track.channel.is_torque() {
+                                "N·mm"
+                            } else {
+                                "N"
+                            };
+                            board.settle(track.start_ns, now, stat, band, unit);
+                        }
+                        if settled {
+                            track.verdict = Some("converged");
+                            return Ok(());
+                        }
+                    }
+                    deadline = track
+                        .next_ns
+                        .max(track.start_ns + track.min_ns)
+                        .min(track.start_ns + track.max_ns);
                 }
                 Until::Frames(n) => {
                     if *n == 0 {

@@ -21,7 +21,8 @@ pub struct StepRow {
     pub position: Option<f64>,
     /// mm or deg.
     pub unit: String,
-    /// Quasistatic (window-mean) force and torque.
+    /// Quasistatic force and torque: the window mean (adaptive settling: F∞ for the settled
+    /// channel).
     pub fx_n: Option<f64>,
     /// See `fx_n`.
     pub fy_n: Option<f64>,
@@ -55,6 +56,17 @@ pub struct StepRow {
     pub settle_end_ns: u64,
     /// Step end (after any frames), ns.
     pub t_end_ns: u64,
+    /// Adaptive settling: the equilibrium value of the settled channel, fitted to its
+    /// relaxation; the step's quasistatic value (its column above holds it too).
+    #[serde(default)]
+    pub f_inf: Option<f64>,
+    /// Standard uncertainty of `f_inf`.
+    #[serde(default)]
+    pub f_inf_sigma: Option<f64>,
+    /// Adaptive settling: the settled channel's window mean (the thesis's quasistatic value,
+    /// kept beside F∞).
+    #[serde(default)]
+    pub window_mean: Option<f64>,
 }
 
 impl StepRow {
@@ -85,6 +97,9 @@ impl StepRow {
             t_start_ns: 0,
             settle_end_ns: 0,
             t_end_ns: 0,
+            f_inf: None,
+            f_inf_sigma: None,
+            window_mean: None,
         }
     }
 }

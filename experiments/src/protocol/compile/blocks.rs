@@ -323,8 +323,10 @@ impl Compiler<'_> {
         let speed = self.speed(s.speed, s.axis, &axis, &at.key("speed"));
         let (window, frames) = self.capture(&s.capture, &at.key("capture"));
         let settle = self.settle(&s.settle, Some(s.axis), window, &at.key("settle"));
-        if matches!(settle, SettleSpec::Rate { .. }) {
-            self.need_force(at, "rate settling");
+        match settle {
+            SettleSpec::Rate { .. } => self.need_force(at, "rate settling"),
+            SettleSpec::Adaptive { .. } => self.need_force(at, "adaptive settling"),
+            _ => {}
         }
         let (Some(from), Some(to), Some(step)) = (from, to, step) else {
             return;

@@ -562,6 +562,11 @@ impl Compiler<'_> {
                 self.within(&at.key("min"), "min", r.min.s(), SETTLE);
                 self.within(&at.key("max"), "max", r.max.s(), SETTLE);
             }
+            Settle::Adaptive(a) => {
+                let at = at.key("adaptive");
+                self.within(&at.key("min"), "min", a.min.s(), SETTLE);
+                self.within(&at.key("max"), "max", a.max.s(), SETTLE);
+            }
         }
     }
 

@@ -209,6 +209,19 @@ pub enum SettleSpec {
         /// What a timeout does.
         on_timeout: OnTimeout,
     },
+    /// Until F∞ of `channel` is known within `tolerance` (fraction), within [min_s, max_s].
+    Adaptive {
+        /// Signal.
+        channel: Channel,
+        /// Twice F∞'s standard uncertainty, as a fraction of |F∞|.
+        tolerance: f64,
+        /// Shortest settle, s.
+        min_s: f64,
+        /// Longest settle, s.
+        max_s: f64,
+        /// What a timeout does.
+        on_timeout: OnTimeout,
+    },
 }
 
 impl SettleSpec {
@@ -217,7 +230,9 @@ impl SettleSpec {
         match *self {
             SettleSpec::None => (0.0, 0.0),
             SettleSpec::Fixed { s } => (s, s),
-            SettleSpec::Rate { min_s, max_s, .. } => (min_s, max_s),
+            SettleSpec::Rate { min_s, max_s, .. } | SettleSpec::Adaptive { min_s, max_s, .. } => {
+                (min_s, max_s)
+            }
         }
     }
 }

@@ -110,6 +110,50 @@ impl Compiler<'_> {
                     on_timeout: r.on_timeout,
                 }
             }
+            Settle::Adaptive(a) => {
+                let at = path.key("adaptive");
+                let channel = a
+                    .signal
+                    .unwrap_or_else(|| axis.map(Channel::along).unwrap_or(Channel::Fz));
+                let tol = a.tolerance.fraction();
+                if !(tol > 0.0 && tol <= 0.5) {
+                    self.error(
+                        &at.key("tolerance"),
+                        format!(
+                            "a tolerance of {} cannot be met or means nothing",
+                            a.tolerance
+                        ),
+                        "write a percentage above 0 and at most 50, e.g. `1 %`",
+                    );
+                }
+                if a.max.s() < a.min.s() {
+                    self.error(
+                        &at.key("max"),
+                        format!("max ({}) is below min ({})", a.max, a.min),
+                        "make max at least min",
+                    );
+                }
+                if window_s > a.min.s() + EPS {
+                    self.error(
+                        &at.key("min"),
+                        format!(
+                            "min ({}) is shorter than the capture's force window ({} s)",
+                            a.min,
+                            fmt_value(window_s)
+                        ),
+                        "raise min to at least the force window",
+                    );
+                }
+                // The fit needs a dozen samples in the shortest settle.
+                self.enough_samples(a.min.s(), 12.0, &at.key("min"), "an adaptive settle");
+                SettleSpec::Adaptive {
+                    channel,
+                    tolerance: tol,
+                    min_s: a.min.s(),
+                    max_s: a.max.s(),
+                    on_timeout: a.on_timeout,
+                }
+            }
         }
     }
 

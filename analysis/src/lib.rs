@@ -28,6 +28,7 @@ pub mod force_sensor;
 pub mod hysteresis;
 pub mod linearity;
 pub mod relaxation;
+pub mod settle_rules;
 pub mod slip;
 pub mod tactile;
 pub mod tracking;

@@ -48,7 +48,7 @@ fn once(file: &Path, live: bool) -> (f64, u64) {
     let server = board.as_ref().map(|b| {
         liveview::Server::start(
             "127.0.0.1:0".parse().expect("addr"),
-            Arc::new(experiments::view::LiveRun { board: b.clone() }),
+            Arc::new(experiments::view::LiveRun::new(b.clone())),
         )
         .expect("serve")
     });

@@ -32,15 +32,35 @@ pub fn live_meta(
     }
 }
 
-/// The run under way: one entry, `live`.
+/// The run under way: one entry, `live` (in a queue, each run in turn).
 pub struct LiveRun {
-    /// Its board.
-    pub board: Arc<Board>,
+    board: Mutex<Arc<Board>>,
+}
+
+impl LiveRun {
+    /// Shows `board`.
+    pub fn new(board: Arc<Board>) -> Self {
+        Self {
+            board: Mutex::new(board),
+        }
+    }
+
+    /// Shows `board` from now on (the queue's next run).
+    pub fn set(&self, board: Arc<Board>) {
+        *self.board.lock().unwrap_or_else(PoisonError::into_inner) = board;
+    }
+
+    fn current(&self) -> Arc<Board> {
+        self.board
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
 }
 
 impl Library for LiveRun {
     fn runs(&self) -> Vec<RunEntry> {
-        let s = self.board.snapshot();
+        let s = self.current().snapshot();
         vec![RunEntry {
             id: "live".into(),
             protocol: s.meta.protocol,
@@ -57,7 +77,7 @@ impl Library for LiveRun {
 
     fn board(&self, id: &str) -> Result<Arc<Board>, String> {
         match id {
-            "live" => Ok(self.board.clone()),
+            "live" => Ok(self.current()),
             _ => Err(format!(
                 "no run `{id}` here: this page shows the run under way"
             )),

@@ -16,6 +16,7 @@ mod motion;
 mod peers;
 mod physics;
 mod plan;
+mod queue;
 mod report;
 mod report_cli;
 mod settle;

@@ -120,3 +120,41 @@ fn a_relaxation_slower_than_the_settle_is_waited_for_not_claimed_at_first() {
         "{warnings:?}"
     );
 }
+
+#[test]
+fn the_report_replays_each_settle_rule_on_the_runs_own_relaxation() {
+    let run = crate::support::shared_dry_run("box-normal-flat");
+    let tmp = tempfile::tempdir().unwrap();
+    experiments::report::report_with_sensor(&run, Some(tmp.path()), None).unwrap();
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("summary.json")).unwrap())
+            .unwrap();
+    let rules = summary["settle"]["rules"].as_array().expect("rules");
+    let get = |prefix: &str| {
+        rules
+            .iter()
+            .find(|r| r["rule"].as_str().unwrap().starts_with(prefix))
+            .unwrap_or_else(|| panic!("no {prefix} rule in {rules:?}"))
+    };
+    let (rate, adaptive) = (get("rate"), get("adaptive"));
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    // On 180 s records of the 1.5 / 15 / 60 s gel: the rate rule stops early and wrong by
+    // the relaxation still to come; the adaptive rule stops early and right.
+    assert!(num(rate, "median_settle_s") < 60.0);
+    assert!(num(adaptive, "median_settle_s") < 60.0);
+    assert!(
+        num(adaptive, "median_abs_error") * 5.0 < num(rate, "median_abs_error"),
+        "{rules:?}"
+    );
+    // The fixed 180 s wait's error, at the curve's last point, is of the adaptive rule's size.
+    let curve = summary["settle"]["median_abs_error_vs_truth"]
+        .as_array()
+        .unwrap();
+    let at_180 = curve.last().unwrap().as_f64().unwrap();
+    assert!(
+        num(adaptive, "median_abs_error") < 2.0 * at_180,
+        "{rules:?} vs {at_180}"
+    );
+    let md = std::fs::read_to_string(tmp.path().join("report.md")).unwrap();
+    assert!(md.contains("replayed through the other settle rules"));
+}

@@ -4,7 +4,7 @@ use analysis::field::{MarkerField, decompose};
 use analysis::field_force::{self, Component};
 use analysis::hysteresis::{Hysteresis, hysteresis};
 use analysis::linearity::{LineFit, LinearRange, PowerLaw, fit_line, fit_power_law, linear_range};
-use analysis::relaxation::{SharedFit, StepRelaxation, analyse_step, fit_shared, settle_error};
+use analysis::relaxation::{SharedFit, StepRelaxation, analyse_step, fit_shared};
 use analysis::slip::{self, SlipReport};
 use mechanics::Indenter;
 use mechanics::response::{ContactModel, ModelSpec, State};
@@ -162,19 +162,6 @@ pub struct StepRelax {
     pub truth: Option<f64>,
 }
 
-/// Settle error against settle time, over the run's relaxing steps.
-#[derive(Debug, Clone)]
-pub struct SettleCurve {
-    /// Waits, s.
-    pub waits_s: Vec<f64>,
-    /// Median |error| against each step's fitted F∞, force units.
-    pub median_abs_vs_fit: Vec<f64>,
-    /// Median |error| against the simulator's equilibrium.
-    pub median_abs_vs_truth: Option<Vec<f64>>,
-    /// Median |error| as % of the step's force change.
-    pub median_pct_vs_fit: Vec<f64>,
-}
-
 /// Everything the report shows.
 #[derive(Debug, Clone)]
 pub struct Report {
@@ -185,7 +172,7 @@ pub struct Report {
     /// Time constants shared by the run's steps.
     pub shared: Option<SharedFit>,
     /// Settle error curve.
-    pub settle: Option<SettleCurve>,
+    pub settle: Option<super::settle_study::SettleCurve>,
     /// Whether a reference contact model was available for field fits.
     pub model_note: Option<String>,
     /// The simulator's equilibrium stiffness of the main block, force per unit.
@@ -825,7 +812,18 @@ pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report
         .filter(|r| r.fit.terms >= 1 && r.fit.f_inf.abs() >= 0.05 * largest)
         .collect();
     let shared = shared_fit(&relaxing);
-    let settle = settle_curve(&relaxation);
+    let views: Vec<super::settle_study::StepRelax<'_>> = relaxation
+        .iter()
+        .map(|r| super::settle_study::StepRelax {
+            t_s: &r.t_s,
+            f: &r.f,
+            f_inf: r.fit.f_inf,
+            terms: r.fit.terms,
+            amplitude: r.fit.amplitudes.iter().sum(),
+            truth: r.truth,
+        })
+        .collect();
+    let settle = super::settle_study::settle_curve(&views);
     let sim_slope = blocks.iter().max_by_key(|b| b.steps.len()).and_then(|b| {
         let (x, y): (Vec<f64>, Vec<f64>) = b
             .steps
@@ -883,52 +881,4 @@ fn shared_fit(relaxing: &[&StepRelax]) -> Option<SharedFit> {
         }
     }
     best.map(|b| b.1)
-}
-
-fn settle_curve(relaxation: &[StepRelax]) -> Option<SettleCurve> {
-    let fitted: Vec<&StepRelax> = relaxation.iter().filter(|r| r.fit.terms >= 1).collect();
-    let longest = fitted
-        .iter()
-        .filter_map(|r| r.t_s.last().copied())
-        .fold(0.0, f64::max);
-    if fitted.is_empty() || longest < 20.0 {
-        return None;
-    }
-    let window = 10.0f64.min(longest / 4.0);
-    let waits: Vec<f64> = [
-        10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0, 150.0, 180.0, 240.0, 300.0, 450.0, 600.0,
-    ]
-    .into_iter()
-    .filter(|w| *w >= window && *w <= 1.01 * longest + 1e-9)
-    .collect();
-    let median = |mut v: Vec<f64>| -> f64 {
-        v.retain(|x| x.is_finite());
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-    };
-    let per_wait = |reference: &dyn Fn(&StepRelax) -> Option<f64>, pct: bool| -> Vec<f64> {
-        let errs: Vec<Vec<f64>> = fitted
-            .iter()
-            .filter_map(|r| {
-                let refv = reference(r)?;
-                let e = settle_error(&r.t_s, &r.f, window, &waits, refv);
-                let scale = if pct {
-                    100.0 / r.fit.amplitudes.iter().sum::<f64>().abs().max(1e-9)
-                } else {
-                    1.0
-                };
-                Some(e.into_iter().map(|v| v.abs() * scale).collect())
-            })
-            .collect();
-        (0..waits.len())
-            .map(|k| median(errs.iter().map(|e| e[k]).collect()))
-            .collect()
-    };
-    let truth_known = fitted.iter().all(|r| r.truth.is_some());
-    Some(SettleCurve {
-        median_abs_vs_fit: per_wait(&|r| Some(r.fit.f_inf), false),
-        median_pct_vs_fit: per_wait(&|r| Some(r.fit.f_inf), true),
-        median_abs_vs_truth: truth_known.then(|| per_wait(&|r| r.truth, false)),
-        waits_s: waits,
-    })
 }

@@ -18,6 +18,7 @@ mod html;
 mod out;
 pub mod plots;
 mod relaxation;
+mod settle_study;
 mod snapshots;
 mod trials;
 mod write;

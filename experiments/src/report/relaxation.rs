@@ -239,6 +239,31 @@ fn settle(
                 .map_or("—".into(), |v| f(v[k], 4))
         );
     }
+    if !sc.rules.is_empty() {
+        let _ = writeln!(
+            text,
+            "\nThe same records replayed through the other settle rules (each stopped at the \
+             record's end at the latest; the value it would have recorded — the window mean, F∞ \
+             for the adaptive rule — against {}; medians over steps; README \"Choosing a settle \
+             rule\"):\n\n| rule | settle time (s) | error | settled before the record's end |\n|---|---|---|---|",
+            if sc.median_abs_vs_truth.is_some() {
+                "the simulator's equilibrium"
+            } else {
+                "each step's fitted F∞"
+            }
+        );
+        for o in &sc.rules {
+            let _ = writeln!(
+                text,
+                "| `{}` | {} | {} | {} of {} |",
+                o.rule,
+                f(o.median_settle_s, 1),
+                f(o.median_abs_error, 4),
+                o.settled,
+                o.steps
+            );
+        }
+    }
     let mut series = vec![Series {
         name: "against fitted F∞".into(),
         points: sc
@@ -258,6 +283,14 @@ fn settle(
             colour: 3,
         });
     }
+    for (k, o) in sc.rules.iter().enumerate() {
+        series.push(Series {
+            name: o.rule.split(':').next().unwrap_or("rule").to_string() + " rule (median)",
+            points: vec![(o.median_settle_s, o.median_abs_error)],
+            mark: Mark::Points,
+            colour: 1 + k,
+        });
+    }
     plots.push(out.plot(
         "settle_error",
         &Chart {
@@ -273,6 +306,8 @@ fn settle(
     Ok(
         json!({"waits_s": sc.waits_s, "median_abs_error_vs_fit": sc.median_abs_vs_fit.iter().map(|v| num(*v)).collect::<Vec<_>>(),
         "median_pct_of_relaxation": sc.median_pct_vs_fit.iter().map(|v| num(*v)).collect::<Vec<_>>(),
-        "median_abs_error_vs_truth": sc.median_abs_vs_truth.as_ref().map(|v| v.iter().map(|x| num(*x)).collect::<Vec<_>>())}),
+        "median_abs_error_vs_truth": sc.median_abs_vs_truth.as_ref().map(|v| v.iter().map(|x| num(*x)).collect::<Vec<_>>()),
+        "rules": sc.rules.iter().map(|o| json!({"rule": o.rule, "median_settle_s": num(o.median_settle_s),
+            "median_abs_error": num(o.median_abs_error), "settled": o.settled, "steps": o.steps})).collect::<Vec<_>>()}),
     )
 }

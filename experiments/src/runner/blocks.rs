@@ -293,7 +293,9 @@ impl Exec<'_> {
                     unreachable!("the adaptive wait keeps its kind")
                 };
                 let verdict = track.verdict.unwrap_or("timeout");
-                self.gel.settled(&track, &self.window);
+                if let Some(e) = &track.last {
+                    self.gel.settled(e, track.record(&self.window));
+                }
                 if let Some(msg) = self.gel.newly_learned() {
                     self.progress.note(&msg);
                     let t = self.now();

@@ -29,29 +29,11 @@ impl SettleTrack {
         now: u64,
     ) -> Option<f64> {
         let from = now.saturating_sub(self.window_ns);
-        let pts: Vec<(f64, f64)> = window
+        let (t, y): (Vec<f64>, Vec<f64>) = window
             .iter()
             .filter(|(t, _, _)| *t >= from)
             .map(|(t, w, _)| ((*t - from) as f64 * 1e-9, self.channel.of(w)))
-            .collect();
-        if pts.len() < 3 {
-            return None;
-        }
-        let n = pts.len() as f64;
-        let (mx, my) = (
-            pts.iter().map(|p| p.0).sum::<f64>() / n,
-            pts.iter().map(|p| p.1).sum::<f64>() / n,
-        );
-        let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
-        if sxx <= 0.0 {
-            return None;
-        }
-        let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
-        let rss: f64 = pts
-            .iter()
-            .map(|p| (p.1 - my - slope * (p.0 - mx)).powi(2))
-            .sum();
-        let se = (rss / (n - 2.0) / sxx).sqrt();
-        Some(slope.abs() + 2.0 * se)
+            .unzip();
+        analysis::settle_rules::drift_bound(&t, &y)
     }
 }

@@ -46,6 +46,11 @@ pub(crate) struct BudgetArgs {
 }
 
 impl BudgetArgs {
+    /// `--name` was given.
+    pub(crate) fn has_name(&self) -> bool {
+        self.name.is_some()
+    }
+
     pub(crate) fn budget(&self) -> Budget {
         let d = Budget::default();
         Budget {

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use anyhow::Context;
 use experiments::progress::ProgressMode;
@@ -9,11 +10,13 @@ use experiments::runner::{Cancel, RunRequest, run};
 use rig::ClockMode;
 use rundir::write::Status;
 
-/// Run a protocol.
+/// Run a protocol, or several in sequence.
 #[derive(clap::Args)]
 pub(crate) struct Cmd {
-    /// Protocol file.
-    protocol: PathBuf,
+    /// Protocol file(s): several run one after the other (a queue), all checked before the
+    /// first starts; the queue stops at the first run that does not complete.
+    #[arg(required = true, num_args = 1..)]
+    protocols: Vec<PathBuf>,
     /// Rig file (default: the protocol's `rig:`).
     #[arg(long)]
     rig: Option<PathBuf>,
@@ -52,19 +55,69 @@ impl Cmd {
         // operator's interrupt always ends in a recorded stop.
         let cancel = Cancel::new();
         watch_signals(cancel.clone())?;
-        let loaded = match super::load_or_report(&self.protocol, self.rig.as_deref(), &self.budget)
-        {
-            Ok(l) => l,
-            Err(code) => return Ok(code),
-        };
-        let real = loaded.real_devices();
-        let clock = match self.clock(&loaded, &real) {
-            Ok(c) => c,
-            Err(e) => {
-                err!("error: {e}");
-                return Ok(ExitCode::from(super::EXIT_INVALID));
+        if self.protocols.len() > 1 && self.budget.has_name() {
+            err!(
+                "error: --name names one run, and {} protocols are queued; fix: drop --name, or run them one by one",
+                self.protocols.len()
+            );
+            return Ok(ExitCode::from(super::EXIT_INVALID));
+        }
+        // The whole queue is checked before anything moves: a typo in the third protocol
+        // must not be found at two in the morning.
+        let mut queue = Vec::new();
+        for p in &self.protocols {
+            let loaded = match super::load_or_report(p, self.rig.as_deref(), &self.budget) {
+                Ok(l) => l,
+                Err(code) => return Ok(code),
+            };
+            let clock = match self.clock(&loaded, &loaded.real_devices()) {
+                Ok(c) => c,
+                Err(e) => {
+                    err!("error: {}: {e}", p.display());
+                    return Ok(ExitCode::from(super::EXIT_INVALID));
+                }
+            };
+            queue.push((loaded, clock));
+        }
+        let mut live: Option<(Arc<experiments::view::LiveRun>, liveview::Server)> = None;
+        let total = queue.len();
+        for (k, (loaded, clock)) in queue.iter().enumerate() {
+            if total > 1 {
+                err!("queue: {} of {total}: {}", k + 1, loaded.protocol.name);
             }
-        };
+            let code = self.run_one(loaded, *clock, &cancel, &mut live)?;
+            if code != ExitCode::SUCCESS {
+                if k + 1 < total {
+                    let left: Vec<&str> = queue[k + 1..]
+                        .iter()
+                        .map(|(l, _)| l.protocol.name.as_str())
+                        .collect();
+                    err!(
+                        "queue stopped: run {} of {total} did not complete; not run: {}",
+                        k + 1,
+                        left.join(", ")
+                    );
+                }
+                return Ok(code);
+            }
+        }
+        if let Some((_, server)) = live {
+            // The page's next poll shows how the last run ended before the server goes.
+            std::thread::sleep(std::time::Duration::from_millis(1500));
+            drop(server);
+        }
+        Ok(ExitCode::SUCCESS)
+    }
+
+    /// Runs one protocol of the queue; its exit code. The live view's server, when asked
+    /// for, is started with the first run and shows each run of the queue in turn.
+    fn run_one(
+        &self,
+        loaded: &experiments::protocol::Loaded,
+        clock: ClockMode,
+        cancel: &Cancel,
+        live: &mut Option<(Arc<experiments::view::LiveRun>, liveview::Server)>,
+    ) -> anyhow::Result<ExitCode> {
         let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
         let mode = if self.quiet {
             ProgressMode::Quiet
@@ -80,18 +133,18 @@ impl Cmd {
         let board = self
             .live
             .is_some()
-            .then(|| liveview::Board::new(experiments::view::live_meta(&loaded, &plan, clock)));
-        let server = match (&self.live, &board) {
-            (Some(addr), Some(b)) => {
-                let server = super::serve(
-                    addr,
-                    std::sync::Arc::new(experiments::view::LiveRun { board: b.clone() }),
-                )?;
-                err!("live view: {}", server.url());
-                Some(server)
+            .then(|| liveview::Board::new(experiments::view::live_meta(loaded, &plan, clock)));
+        if let (Some(addr), Some(b)) = (&self.live, &board) {
+            match live {
+                Some((lib, _)) => lib.set(b.clone()),
+                None => {
+                    let lib = Arc::new(experiments::view::LiveRun::new(b.clone()));
+                    let server = super::serve(addr, lib.clone())?;
+                    err!("live view: {}", server.url());
+                    *live = Some((lib, server));
+                }
             }
-            _ => None,
-        };
+        }
         // Virtual time: tokio's paused clock jumps to the next timer whenever the run waits;
         // it needs the single-threaded runtime. On a real (or scaled) clock the watchdog
         // gets a worker thread of its own, so nothing the plan computes can delay it.
@@ -109,7 +162,7 @@ impl Cmd {
         .context("starting the runtime")?;
         let outcome = runtime.block_on(run(
             RunRequest {
-                loaded: &loaded,
+                loaded,
                 plan: &plan,
                 out: self.out.clone(),
                 seed: self.seed,
@@ -122,11 +175,6 @@ impl Cmd {
         ));
         // A device open abandoned by an interrupt may still be computing: don't wait for it.
         runtime.shutdown_background();
-        if let Some(server) = server {
-            // The page's next poll shows how the run ended before the server goes.
-            std::thread::sleep(std::time::Duration::from_millis(1500));
-            drop(server);
-        }
         let outcome = outcome.context("recording the run")?;
         out!("{}", outcome.dir.display());
         let status = outcome.status.name();

@@ -1,0 +1,245 @@
+//! The settle rules as pure functions of a relaxation record: what the runner judges live,
+//! and what a report replays on a recorded run to compare rules (the equilibrium error
+//! against settle time each would have given).
+//!
+//! - The **rate rule**: settled once the drift bound — the least-squares slope over the last
+//!   `window_s` plus twice its standard error — is below `below` (and `min_s` has passed).
+//! - The **adaptive rule** ([`crate::equilibrium`]): settled once F∞ is known within the
+//!   tolerance; a fit every max(2 s, a tenth of the wait). [`GelMemory`] carries what a run
+//!   learns of the gel's time constants from one step to the next.
+
+use std::collections::VecDeque;
+
+use crate::equilibrium::{self, Equilibrium, Learned};
+
+/// Upper bound of |slope| of `y` against `t` (per unit of t): the least-squares slope plus
+/// twice its standard error; `None` for fewer than three points or no spread in `t`.
+/// Judging the bound rather than the slope keeps noise from settling a step by chance: a
+/// threshold below what the noise can resolve is never met.
+pub fn drift_bound(t: &[f64], y: &[f64]) -> Option<f64> {
+    let n = t.len().min(y.len());
+    if n < 3 {
+        return None;
+    }
+    let nf = n as f64;
+    let mx = t[..n].iter().sum::<f64>() / nf;
+    let my = y[..n].iter().sum::<f64>() / nf;
+    let sxx: f64 = t[..n].iter().map(|v| (v - mx).powi(2)).sum();
+    if sxx <= 0.0 {
+        return None;
+    }
+    let slope = t[..n]
+        .iter()
+        .zip(&y[..n])
+        .map(|(a, b)| (a - mx) * (b - my))
+        .sum::<f64>()
+        / sxx;
+    let rss: f64 = t[..n]
+        .iter()
+        .zip(&y[..n])
+        .map(|(a, b)| (b - my - slope * (a - mx)).powi(2))
+        .sum();
+    let se = (rss / (nf - 2.0) / sxx).sqrt();
+    Some(slope.abs() + 2.0 * se)
+}
+
+/// The rate rule's parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RateRule {
+    /// Threshold on the drift bound, per s.
+    pub below: f64,
+    /// Slope window, s.
+    pub window_s: f64,
+    /// Shortest settle, s.
+    pub min_s: f64,
+    /// Longest settle, s.
+    pub max_s: f64,
+}
+
+/// When the rate rule would have ended the settle of record (`t_s` from its start): the
+/// first sample time at which it holds, or the max (or the record's end, if shorter) with
+/// `false`.
+pub fn rate_stop(t_s: &[f64], y: &[f64], rule: &RateRule) -> (f64, bool) {
+    let end = t_s.last().copied().unwrap_or(0.0).min(rule.max_s);
+    let mut from = 0;
+    for (i, &now) in t_s.iter().enumerate() {
+        if now > end {
+            break;
+        }
+        while t_s[from] < now - rule.window_s {
+            from += 1;
+        }
+        if now >= rule.min_s
+            && now >= rule.window_s
+            && drift_bound(&t_s[from..=i], &y[from..=i]).is_some_and(|b| b < rule.below)
+        {
+            return (now, true);
+        }
+    }
+    (end, false)
+}
+
+/// The adaptive rule's parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdaptiveRule {
+    /// Twice F∞'s uncertainty, as a fraction of |F∞|.
+    pub tolerance: f64,
+    /// Shortest settle, s.
+    pub min_s: f64,
+    /// Longest settle, s.
+    pub max_s: f64,
+    /// The quasistatic window, s (its mean is kept beside F∞).
+    pub window_s: f64,
+}
+
+/// The next fit after one at `elapsed_s`: a tenth of the wait later, at least 2 s.
+pub fn next_check_s(elapsed_s: f64) -> f64 {
+    elapsed_s + (elapsed_s / 10.0).max(2.0)
+}
+
+/// What a run has learned of the gel's relaxation, from step to step.
+#[derive(Debug, Clone, Default)]
+pub struct GelMemory {
+    records: VecDeque<(Vec<f64>, Vec<f64>)>,
+    learned: Option<Learned>,
+    /// The largest |F∞| so far: near zero force a relative tolerance is measured against a
+    /// tenth of it.
+    peak: f64,
+    announced: bool,
+}
+
+/// Records kept for learning the gel's time constants (the newest).
+const KEEP_RECORDS: usize = 4;
+
+impl GelMemory {
+    /// The time constants learned so far.
+    pub fn learned(&self) -> Option<&Learned> {
+        self.learned.as_ref()
+    }
+
+    /// The smallest denominator of the relative tolerance: a tenth of the largest |F∞| so far.
+    pub fn floor(&self) -> f64 {
+        0.1 * self.peak
+    }
+
+    /// F∞ of `record` (t from the settle's start, the channel) with what is learned.
+    pub fn estimate(&self, t_s: &[f64], y: &[f64], window_s: f64) -> Option<Equilibrium> {
+        equilibrium::estimate_with(t_s, y, window_s, self.learned.as_ref())
+    }
+
+    /// A settle ended with estimate `e` of `record`: its scale counts towards the run's
+    /// force scale, and a record long enough against its own fit's slowest time constant
+    /// (even one whose F∞ band stayed wider than the tolerance) teaches the gel's time
+    /// constants, pooled with the newest few such records. A record that did not pin them
+    /// teaches nothing: later steps would inherit its mistake with a confidence they
+    /// cannot have.
+    pub fn settled(&mut self, e: &Equilibrium, record: (Vec<f64>, Vec<f64>)) {
+        self.peak = self.peak.max(e.f_inf.abs());
+        if !e.pins_time_constants() {
+            return;
+        }
+        if self.records.len() == KEEP_RECORDS {
+            self.records.pop_front();
+        }
+        self.records.push_back(record);
+        let records: Vec<(Vec<f64>, Vec<f64>)> = self.records.iter().cloned().collect();
+        if let Some(l) = equilibrium::learn(&records, &e.taus_s) {
+            self.learned = Some(l);
+        }
+    }
+
+    /// The time constants now learned, once, the first time there are some: what later
+    /// steps assume (a gel relaxing slower than the slowest of them, over times no record so
+    /// far could show, would make those steps' F∞ wrong).
+    pub fn newly_learned(&mut self) -> Option<String> {
+        if self.announced {
+            return None;
+        }
+        let l = self.learned.as_ref()?;
+        self.announced = true;
+        Some(format!(
+            "adaptive settling: later steps fit F∞ with the gel's time constants learned so far \
+             ({} s, ±{:.0} %); they assume nothing relaxes slower than {:.0} s — a slower \
+             relaxation needs a `max` of at least 2.5× it to be seen",
+            l.taus_s
+                .iter()
+                .map(|t| format!("{t:.1}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            200.0 * l.rel_sigma,
+            l.taus_s.last().copied().unwrap_or(0.0)
+        ))
+    }
+}
+
+/// When the adaptive rule would have ended the settle of `record` (`t_s` from its start),
+/// fitting on the runner's schedule: the time, the estimate then, and whether it was known
+/// (false: the max, or the record's end, came first). `memory` learns from it as a run would.
+pub fn adaptive_stop(
+    t_s: &[f64],
+    y: &[f64],
+    rule: &AdaptiveRule,
+    memory: &mut GelMemory,
+) -> Option<(f64, Equilibrium, bool)> {
+    let end = t_s.last().copied()?.min(rule.max_s);
+    let mut at = rule.min_s.min(end);
+    let mut last = None;
+    loop {
+        let k = t_s.partition_point(|t| *t <= at);
+        if let Some(e) = memory.estimate(&t_s[..k], &y[..k], rule.window_s) {
+            let known = e.known_within(rule.tolerance, memory.floor());
+            if known || at >= end {
+                memory.settled(&e, (t_s[..k].to_vec(), y[..k].to_vec()));
+                return Some((at, e, known));
+            }
+            last = Some(e);
+        }
+        if at >= end {
+            break;
+        }
+        at = next_check_s(at).min(end);
+    }
+    let e = last?;
+    memory.settled(&e, (t_s.to_vec(), y.to_vec()));
+    Some((end, e, false))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_drift_bound_of_a_line_is_its_slope_and_noise_raises_it() {
+        let t: Vec<f64> = (0..100).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = t.iter().map(|v| 0.5 * v).collect();
+        assert!((drift_bound(&t, &y).expect("bound") - 0.5).abs() < 1e-9);
+        let noisy: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v + if i % 2 == 0 { 0.01 } else { -0.01 })
+            .collect();
+        assert!(drift_bound(&t, &noisy).expect("bound") > 0.5);
+        assert!(drift_bound(&t[..2], &y[..2]).is_none());
+    }
+
+    #[test]
+    fn the_rate_rule_stops_when_the_drift_falls_below_its_threshold() {
+        // y = e^{−t/10}: slope e^{−t/10}/10 falls below 0.001 at t = 10 ln 100 ≈ 46 s (the
+        // windowed slope lags a little).
+        let t: Vec<f64> = (0..3000).map(|i| i as f64 * 0.05).collect();
+        let y: Vec<f64> = t.iter().map(|v| (-v / 10.0).exp()).collect();
+        let rule = RateRule {
+            below: 0.001,
+            window_s: 5.0,
+            min_s: 10.0,
+            max_s: 120.0,
+        };
+        let (stop, settled) = rate_stop(&t, &y, &rule);
+        assert!(settled && (45.0..56.0).contains(&stop), "{stop}");
+        let strict = RateRule {
+            below: 1e-9,
+            ..rule
+        };
+        assert_eq!(rate_stop(&t, &y, &strict), (120.0, false));
+    }
+}

@@ -25,13 +25,12 @@ pub use server::{Library, RunEntry, Server};
 pub enum LiveError {
     /// The address could not be bound.
     #[error(
-        "cannot serve the live view on {addr}: {source}; fix: give another address, e.g. `127.0.0.1:0` for any free port"
+        "cannot serve the live view on {addr}: {cause}; fix: give another address, e.g. `127.0.0.1:0` for any free port"
     )]
     Bind {
         /// The address asked for.
         addr: String,
-        /// Why.
-        #[source]
-        source: std::io::Error,
+        /// Why (in the message: the CLI prints an error's chain, and this is its end).
+        cause: std::io::Error,
     },
 }

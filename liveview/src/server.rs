@@ -63,17 +63,17 @@ impl Server {
     pub fn start(addr: SocketAddr, library: Arc<dyn Library>) -> Result<Self, LiveError> {
         let listener = std::net::TcpListener::bind(addr).map_err(|source| LiveError::Bind {
             addr: addr.to_string(),
-            source,
+            cause: source,
         })?;
         let bound = listener.local_addr().map_err(|source| LiveError::Bind {
             addr: addr.to_string(),
-            source,
+            cause: source,
         })?;
         listener
             .set_nonblocking(true)
             .map_err(|source| LiveError::Bind {
                 addr: addr.to_string(),
-                source,
+                cause: source,
             })?;
         let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
         let app = router(library);
@@ -99,7 +99,7 @@ impl Server {
             })
             .map_err(|source| LiveError::Bind {
                 addr: addr.to_string(),
-                source,
+                cause: source,
             })?;
         let host = match bound {
             SocketAddr::V6(a) => format!("[{}]", a.ip()),

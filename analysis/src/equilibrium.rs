@@ -164,7 +164,15 @@ fn linear_fit(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(Vec<f64>, f64)> {
         }
     });
     let b = DVector::from_column_slice(y);
-    let x = a.clone().svd(true, true).solve(&b, 1e-12).ok()?;
+    if !(a.iter().all(|v| v.is_finite()) && b.iter().all(|v| v.is_finite())) {
+        return None;
+    }
+    // Bounded: nalgebra's plain `svd` may not return on an ill-conditioned matrix.
+    let x = a
+        .clone()
+        .try_svd(true, true, f64::EPSILON, 500)?
+        .solve(&b, 1e-12)
+        .ok()?;
     let rss = (a * &x - b).norm_squared();
     rss.is_finite().then(|| (x.iter().copied().collect(), rss))
 }
@@ -401,6 +409,17 @@ pub fn estimate_with(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_non_finite_record_is_refused_not_solved_forever() {
+        let t = [0.0, 1.0, f64::INFINITY, 3.0, 4.0];
+        let y = [1.0, 0.8, 0.7, f64::NAN, 0.6];
+        assert!(linear_fit(&t, &y, &[1.0]).is_none());
+        assert!(
+            linear_fit(&t[..2], &[1.0, 2.0], &[1.0, 2.0]).is_none(),
+            "too few points"
+        );
+    }
+
     use super::*;
     use rand::SeedableRng;
     use rand::rngs::StdRng;

@@ -280,7 +280,9 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
             .zip(delta.iter())
             .map(|(a, d)| a + d)
             .collect();
-        if model_jac(&cand).0.norm_squared() <= res.norm_squared() {
+        // A step that drives a time constant to 0 or ∞ leaves a non-finite Jacobian: refused.
+        let (cand_res, cand_jac) = model_jac(&cand);
+        if cand_jac.iter().all(|v| v.is_finite()) && cand_res.norm_squared() <= res.norm_squared() {
             params = cand;
         } else {
             break;
@@ -290,8 +292,17 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
     let rss = res.norm_squared();
     let dof = (n - p).max(1) as f64;
     let jtj = jac.transpose() * &jac;
-    let sv = jac.clone().svd(false, false).singular_values;
-    let condition = sv.max() / sv.min().max(1e-300);
+    // Bounded, and never on a non-finite matrix: nalgebra's plain `svd` does not return on
+    // one (a run's report once hung here).
+    let condition = jac
+        .iter()
+        .all(|v| v.is_finite())
+        .then(|| jac.clone().try_svd(false, false, f64::EPSILON, 500))
+        .flatten()
+        .map_or(f64::INFINITY, |svd| {
+            let sv = svd.singular_values;
+            sv.max() / sv.min().max(1e-300)
+        });
     let sigma = jtj
         .try_inverse()
         .map(|inv| (rss / dof * inv[(0, 0)].max(0.0)).sqrt())

@@ -47,6 +47,7 @@ fn dry_run(c: &mut Criterion) {
                             progress: ProgressMode::Quiet,
                             live: None,
                             record_mcap: false,
+                            resume: None,
                         },
                         Cancel::new(),
                     ))

@@ -92,6 +92,7 @@ fn once(file: &Path, live: bool) -> (f64, u64) {
                 progress: ProgressMode::Quiet,
                 live: board,
                 record_mcap: false,
+                resume: None,
             },
             Cancel::new(),
         ))

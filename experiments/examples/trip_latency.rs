@@ -143,6 +143,7 @@ fn main() {
                         progress: ProgressMode::Quiet,
                         live: None,
                         record_mcap: false,
+                        resume: None,
                     },
                     Cancel::new(),
                 ))
@@ -200,6 +201,7 @@ fn main() {
                         progress: ProgressMode::Quiet,
                         live: None,
                         record_mcap: false,
+                        resume: None,
                     },
                     Cancel::new(),
                 ))

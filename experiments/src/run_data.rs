@@ -56,10 +56,23 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, RunDirError> {
         path: dir.join("run.yaml"),
         detail,
     })?;
+    // A resumed run is read as one: each step's rows from the segment that completed it.
+    let segments = |steps: &[StepRow]| {
+        rundir::resumed::Segments::new(&manifest, steps.iter().map(|r| (r.step, r.t_end_ns)))
+    };
     let steps: Vec<StepRow> = read_csv(&dir.join("steps.csv"))?;
-    let force: Vec<ForceRow> = read_optional(&dir.join("force.csv"))?.unwrap_or_default();
-    let sim = read_optional(&dir.join("sim_steps.csv"))?;
-    let frames: Vec<FrameRow> = read_optional(&dir.join("frames.csv"))?.unwrap_or_default();
+    let steps = rundir::resumed::Segments::last_per_step(steps, |r| r.step);
+    let seg = segments(&steps);
+    let mut force: Vec<ForceRow> = read_optional(&dir.join("force.csv"))?.unwrap_or_default();
+    let sim = read_optional::<SimRow>(&dir.join("sim_steps.csv"))?
+        .map(|rows| rundir::resumed::Segments::last_per_step(rows, |r| r.step));
+    let mut frames: Vec<FrameRow> = read_optional(&dir.join("frames.csv"))?.unwrap_or_default();
+    let mut tactile = read_tactile(dir)?;
+    if seg.resumed() {
+        force.retain(|r| seg.keeps(r.step, r.t_ns));
+        frames.retain(|r| seg.keeps(r.step, r.t_ns));
+        tactile.retain(|r| seg.keeps(r.step, r.t_ns));
+    }
     let mut markers = BTreeMap::new();
     let mut frame_size = None;
     let mut contact = Vec::new();
@@ -85,7 +98,7 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, RunDirError> {
         markers,
         frame_size,
         contact,
-        tactile: read_tactile(dir)?,
+        tactile,
     })
 }
 

@@ -68,7 +68,21 @@ pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
                     protocol: m.protocol,
                     started: m.started_utc,
                     steps: format!("{}/{}", m.steps_completed, m.steps_planned),
-                    note: m.reason.or(m.error).unwrap_or_default(),
+                    note: {
+                        let why = m.reason.or(m.error).unwrap_or_default();
+                        match m.resumed.len() {
+                            0 => why,
+                            n => format!(
+                                "resumed {n}× (at step {}){}{why}",
+                                m.resumed
+                                    .iter()
+                                    .map(|s| s.from_step.to_string())
+                                    .collect::<Vec<_>>()
+                                    .join(", "),
+                                if why.is_empty() { "" } else { "; " }
+                            ),
+                        }
+                    },
                     duration_s,
                     seed: Some(m.seed),
                     rig: if simulated {

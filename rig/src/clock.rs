@@ -55,6 +55,17 @@ impl Clock {
         }
     }
 
+    /// Builds a clock in `mode` that reads `t0_ns` now: a resumed run continues on its own
+    /// timebase. A real clock cannot be set: it keeps reading CLOCK_MONOTONIC, which the
+    /// caller checks is past `t0_ns`.
+    pub fn starting_at(mode: ClockMode, t0_ns: u64) -> Self {
+        let mut c = Self::new(mode);
+        if !matches!(mode, ClockMode::Monotonic) {
+            c.origin_ns = t0_ns;
+        }
+        c
+    }
+
     /// The clock's mode.
     pub fn mode(&self) -> ClockMode {
         self.mode

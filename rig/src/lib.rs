@@ -12,6 +12,7 @@
 
 mod checked;
 pub mod clock;
+pub mod clock_sync;
 pub mod config;
 pub mod device;
 pub mod drivers;

@@ -11,5 +11,6 @@
 
 pub mod export;
 pub mod read;
+pub mod resumed;
 mod ros2;
 pub mod write;

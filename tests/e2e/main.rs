@@ -19,6 +19,7 @@ mod plan;
 mod queue;
 mod report;
 mod report_cli;
+mod resume;
 mod settle;
 mod signals;
 mod support;

@@ -150,6 +150,7 @@ pub(crate) fn run_virtual(
                 progress: ProgressMode::Quiet,
                 live: None,
                 record_mcap: false,
+                resume: None,
             },
             cancel,
         )
@@ -290,6 +291,7 @@ pub(crate) fn run_on_real_rig(
                 progress: experiments::progress::ProgressMode::Quiet,
                 live: None,
                 record_mcap: false,
+                resume: None,
             },
             experiments::runner::Cancel::new(),
         ))

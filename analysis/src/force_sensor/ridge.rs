@@ -64,14 +64,18 @@ impl LinearModel {
             })
             .collect();
         let xs = DMatrix::from_fn(n, p, |i, j| (x[i][j] - mean[j]) / scale[j]);
-        let svd = xs.clone().svd(true, true);
-        let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        // Bounded and only on finite input: nalgebra's plain `svd` may never return.
+        let svd = xs
+            .iter()
+            .all(|v| v.is_finite())
+            .then(|| xs.clone().try_svd(true, true, f64::EPSILON, 1000))
+            .flatten();
+        let Some((Some(u), Some(vt), s)) = svd.map(|d| (d.u, d.v_t, d.singular_values)) else {
             return Err(SensorError::TooFewSamples {
                 samples: n,
                 features: p,
             });
         };
-        let s = svd.singular_values;
         let smax2 = s.iter().fold(0.0f64, |a, v| a.max(v * v)).max(1e-300);
         let channels = (0..y.first().map_or(0, Vec::len))
             .map(|c| {

@@ -77,7 +77,11 @@ impl ScaleBasis {
         // vectors): judge singularity on the correlation, not on raw values.
         let d: Vec<f64> = (0..k).map(|a| gram[(a, a)].max(1e-300).sqrt()).collect();
         let corr = DMatrix::from_fn(k, k, |a, b| gram[(a, b)] / (d[a] * d[b]));
-        let svd = corr.clone().svd(false, false);
+        // Bounded and only on finite input: nalgebra's plain `svd` may never return.
+        if !corr.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let svd = corr.clone().try_svd(false, false, f64::EPSILON, 1000)?;
         let (smax, smin) = svd
             .singular_values
             .iter()

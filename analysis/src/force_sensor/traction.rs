@@ -128,7 +128,11 @@ pub fn solve(
             g.cholesky()?.solve(&rhs)
         }
         None => {
-            let svd = a.clone().svd(true, true);
+            // Bounded and only on finite input: nalgebra's plain `svd` may never return.
+            if !a.iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            let svd = a.clone().try_svd(true, true, f64::EPSILON, 1000)?;
             let (u, vt) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
             let s = &svd.singular_values;
             let utb = u.transpose() * &b;

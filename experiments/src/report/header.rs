@@ -79,6 +79,27 @@ pub(super) fn header(data: &RunData) -> (String, Value) {
     if !m.safety_events.is_empty() {
         row("safety events", m.safety_events.join("; "));
     }
+    if !m.resumed.is_empty() {
+        // One run in segments: each step's data is the segment's that completed it.
+        row(
+            "resumed",
+            m.resumed
+                .iter()
+                .map(|s| {
+                    format!(
+                        "at step {} on {} (the previous segment {}{})",
+                        s.from_step,
+                        s.started_utc,
+                        s.previous_status,
+                        s.previous_message
+                            .as_deref()
+                            .map_or(String::new(), |w| format!(": {w}"))
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; "),
+        );
+    }
     let json = json!({
         "dir": data.dir.display().to_string(),
         "protocol": m.protocol,
@@ -88,6 +109,7 @@ pub(super) fn header(data: &RunData) -> (String, Value) {
         "reason": reason,
         "steps_planned": m.steps_planned,
         "steps_completed": m.steps_completed,
+        "resumed_at_steps": m.resumed.iter().map(|s| s.from_step).collect::<Vec<_>>(),
         "started_utc": m.started_utc,
         "ended_utc": m.ended_utc,
         "gelrig_version": m.gelrig_version,

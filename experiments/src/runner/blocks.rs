@@ -138,6 +138,26 @@ impl Exec<'_> {
         let deadline = self.deadline_for(axis, 0.0, speed, what);
         self.wait(&mut Until::Motion(vec![deadline])).await?;
         let contact = self.position(axis).await?;
+        // Inside a trial every approach finds its own contact (a grasp's is where the
+        // object happens to be): only the bench's origin, outside trials, is checked.
+        if self.trial == 0
+            && let Some(r) = self.resume.as_mut()
+            && let Some(recorded) = r.check_origin(axis, contact)?
+        {
+            let tolerance = r.origin_tolerance;
+            let t = self.now();
+            self.rec.journal(
+                t,
+                "contact_rechecked",
+                json!({ "axis": axis, "recorded": recorded, "found": contact, "difference": contact - recorded, "tolerance": tolerance }),
+                true,
+            )?;
+            self.progress.note(&format!(
+                "resume: contact {} from the recorded origin (tolerance ±{})",
+                fmt_value(((contact - recorded) * 1e6).round() / 1e6),
+                fmt_value(tolerance)
+            ));
+        }
         self.origin.insert(axis, contact);
         self.targets.insert(axis, contact);
         let force = self.latest.map(|(_, w)| channel.of(&w)).unwrap_or(0.0);

@@ -60,6 +60,8 @@ pub(super) struct Exec<'a> {
     pub(super) slip_stop: Option<analysis::tactile::SlipState>,
     /// The tactile stop was reached during the current move.
     pub(super) slip_hit: bool,
+    /// Where a resumed run continues, and what it replays first.
+    pub(super) resume: Option<super::Resume>,
 }
 
 impl<'a> Exec<'a> {
@@ -123,6 +125,7 @@ impl<'a> Exec<'a> {
             gelsight: None,
             slip_stop: None,
             slip_hit: false,
+            resume: None,
         }
     }
 
@@ -198,11 +201,20 @@ impl<'a> Exec<'a> {
     pub(super) async fn run_actions(&mut self, actions: &[Action]) -> Result<(), Stop> {
         for action in actions {
             self.check_stop()?;
+            // A resumed run does not repeat a trial it completed.
+            if self
+                .resume
+                .as_ref()
+                .is_some_and(|r| r.skips_trial(action.trial))
+            {
+                continue;
+            }
             self.trial = action.trial;
             match &action.kind {
                 ActionKind::Home { axes } => self.home(axes).await?,
                 ActionKind::Approach(a) => self.approach(a).await?,
                 ActionKind::Tare { duration_s } => self.tare(*duration_s).await?,
+                ActionKind::Step(s) if self.before_resume(s.step) => self.replay(s).await?,
                 ActionKind::Step(s) => self.step(s).await?,
                 ActionKind::StreamsBegin(r) => {
                     self.streams.push(*r);

@@ -23,6 +23,7 @@ mod blocks;
 mod cancel;
 mod exec;
 mod motion;
+mod resume;
 mod retract;
 mod settle;
 mod tactile;
@@ -42,6 +43,7 @@ use rundir::write::{DeviceRecord, Manifest, RecordError, Recorder, Status};
 
 pub use cancel::Cancel;
 use exec::Exec;
+pub use resume::Resume;
 
 /// The camera's image scale, mm/px: the sensor's view fitted into the frame (as `gelrig
 /// track` reads a run directory's scale).
@@ -86,6 +88,9 @@ pub struct RunRequest<'a> {
     pub live: Option<std::sync::Arc<liveview::Board>>,
     /// Also write `run.mcap` as the run goes (`gelrig run --record mcap`).
     pub record_mcap: bool,
+    /// Continue this run in its own directory instead of starting one (`gelrig resume`);
+    /// `out` is then unused.
+    pub resume: Option<Resume>,
 }
 
 /// How a run ended.
@@ -122,6 +127,8 @@ enum Stop {
     Record(#[from] RecordError),
     #[error("record.gelsight_force: {0}")]
     Sensor(String),
+    #[error("resume refused: {0}")]
+    Resume(String),
 }
 
 impl Stop {
@@ -134,7 +141,8 @@ impl Stop {
             | Stop::Missed(_)
             | Stop::Device(_)
             | Stop::Record(_)
-            | Stop::Sensor(_) => Status::Failed,
+            | Stop::Sensor(_)
+            | Stop::Resume(_) => Status::Failed,
         }
     }
 }
@@ -187,6 +195,7 @@ pub fn run_virtual_blocking(
             progress: crate::progress::ProgressMode::Quiet,
             live: None,
             record_mcap: false,
+            resume: None,
         },
         Cancel::new(),
     ))
@@ -196,7 +205,10 @@ pub fn run_virtual_blocking(
 pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, RecordError> {
     let loaded = req.loaded;
     let p = &loaded.protocol;
-    let clock = Clock::new(req.clock);
+    let clock = match &req.resume {
+        Some(r) => Clock::starting_at(req.clock, r.t_start_ns),
+        None => Clock::new(req.clock),
+    };
     let manifest = Manifest {
         status: Status::Running,
         reason: None,
@@ -227,10 +239,20 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
             .iter()
             .map(|d| format!("{}:{}: {}", d.line, d.column, d.message))
             .collect(),
+        resumed: Vec::new(),
     };
-    // The resolved protocol (sensor defaults filled in) is what actually ran.
-    let protocol_yaml = serde_yaml::to_string(p).unwrap_or_else(|_| loaded.text.clone());
-    let mut rec = Recorder::create(&req.out, manifest, &protocol_yaml, &loaded.rig_text)?;
+    let mut rec = match &req.resume {
+        None => {
+            // The resolved protocol (sensor defaults filled in) is what actually ran.
+            let protocol_yaml = serde_yaml::to_string(p).unwrap_or_else(|_| loaded.text.clone());
+            Recorder::create(&req.out, manifest, &protocol_yaml, &loaded.rig_text)?
+        }
+        Some(r) => {
+            let (mut rec, cut) = Recorder::reopen(&r.dir, |m| r.begin(m))?;
+            let _ = rec.journal(clock.now_ns(), "resume", r.record(&cut), true);
+            rec
+        }
+    };
     if req.record_mcap {
         rec.record_mcap(&loaded.rig_text)?;
     }
@@ -274,6 +296,10 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
             identity: d.identity.clone(),
         })
         .collect();
+    if let Some(Err(why)) = req.resume.as_ref().map(|r| r.check_devices(&devices)) {
+        let msg = format!("resume refused before anything moved: {why}");
+        return finish(rec, &clock, &progress, Status::Failed, Some(msg));
+    }
     let opened = rec
         .update_manifest(|m| m.devices = devices.clone())
         .and_then(|()| {
@@ -288,6 +314,7 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
     let monitor = start_watchdog(&mut rig, loaded, &clock, req.clock);
     let mut exec = Exec::new(rig, monitor, clock.clone(), rec, &progress, cancel, loaded);
     exec.mm_per_px = image_scale(loaded, &exec.rig);
+    exec.resume = req.resume.clone();
     let result = match (opened, gelsight_sensor(loaded)) {
         (Ok(()), Ok(sensor)) => {
             // The sensor the run read with travels with the run (the protocol only names

@@ -26,18 +26,61 @@ pub(super) struct Appender {
     file: File,
     /// Length up to the end of the last whole record.
     len: u64,
+    /// Bytes of a torn last record cut when the file was opened.
+    cut_bytes: u64,
 }
 
 impl Appender {
-    /// Creates (truncates) `path`.
+    /// Opens `path` for appending, creating it if missing. A file that exists belongs to a
+    /// run being resumed: a torn last record (the process was killed part-way through a
+    /// write) is cut back to the last whole one — it was never a record — and
+    /// [`Self::cut_bytes`] says how much went.
     pub(super) fn create(path: PathBuf) -> Result<Self, RecordError> {
-        let file = OpenOptions::new()
+        use std::io::{Read, Seek, SeekFrom};
+        let mut file = OpenOptions::new()
             .create(true)
-            .truncate(true)
+            .truncate(false)
+            .read(true)
             .write(true)
             .open(&path)
             .map_err(io(&path))?;
-        Ok(Self { path, file, len: 0 })
+        let end = file.seek(SeekFrom::End(0)).map_err(io(&path))?;
+        let mut len = end;
+        if end > 0 {
+            // Records end in a newline: find the last one in the tail.
+            let tail = end.min(1 << 20);
+            file.seek(SeekFrom::Start(end - tail)).map_err(io(&path))?;
+            let mut buf = Vec::with_capacity(tail as usize);
+            Read::by_ref(&mut file)
+                .take(tail)
+                .read_to_end(&mut buf)
+                .map_err(io(&path))?;
+            len = match buf.iter().rposition(|&b| b == b'\n') {
+                Some(i) => end - tail + i as u64 + 1,
+                None if tail == end => 0,
+                None => end,
+            };
+            if len < end {
+                file.set_len(len).map_err(io(&path))?;
+            }
+            file.seek(SeekFrom::Start(len)).map_err(io(&path))?;
+        }
+        Ok(Self {
+            path,
+            file,
+            len,
+            cut_bytes: end - len,
+        })
+    }
+
+    /// Bytes of a torn last record cut when the file was opened.
+    pub(super) fn cut_bytes(&self) -> u64 {
+        self.cut_bytes
+    }
+
+    /// True if the file held records when it was opened (a resumed run's).
+    pub(super) fn had_records(&self) -> bool {
+        self.len > 0
     }
 
     /// The file.
@@ -94,23 +137,31 @@ pub(super) struct CsvFile {
 }
 
 impl CsvFile {
-    /// A new file; its header is written with the first row.
+    /// A new file, its header written with the first row; or a resumed run's file, whose
+    /// rows continue under the header it has.
     pub(super) fn create(path: PathBuf) -> Result<Self, RecordError> {
         let staged = Staging::default();
+        let out = Appender::create(path)?;
+        let encoder = csv::WriterBuilder::new()
+            .has_headers(!out.had_records())
+            .from_writer(staged.clone());
         Ok(Self {
-            out: Appender::create(path)?,
-            encoder: csv::Writer::from_writer(staged.clone()),
+            out,
+            encoder,
             staged,
         })
     }
 
-    /// A new file whose header, from `example`'s field names, is on disk at once (so even a
-    /// run with no row has a readable file).
+    /// A file whose header, from `example`'s field names, is on disk at once (so even a
+    /// run with no row has a readable file); a resumed run's file keeps its own.
     pub(super) fn with_header_of<T: serde::Serialize>(
         path: PathBuf,
         example: &T,
     ) -> Result<Self, RecordError> {
         let mut f = Self::create(path)?;
+        if f.out.had_records() {
+            return Ok(f);
+        }
         let bytes = f.encode(example)?;
         let header_len = bytes
             .iter()
@@ -120,6 +171,11 @@ impl CsvFile {
         f.out.append(&bytes[..header_len])?;
         f.out.sync()?;
         Ok(f)
+    }
+
+    /// Bytes of a torn last row cut when the file was opened.
+    pub(super) fn cut_bytes(&self) -> u64 {
+        self.out.cut_bytes()
     }
 
     /// One row in memory, with the header before the first.
@@ -246,13 +302,14 @@ mod tests {
         assert_eq!(left, vec![std::ffi::OsString::from("run.yaml")]);
     }
 
+    #[derive(serde::Serialize)]
+    struct Row {
+        t_ns: u64,
+        fz_n: f64,
+    }
+
     #[test]
     fn csv_header_then_whole_rows() {
-        #[derive(serde::Serialize)]
-        struct Row {
-            t_ns: u64,
-            fz_n: f64,
-        }
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("force.csv");
         let mut f =
@@ -263,6 +320,38 @@ mod tests {
         assert_eq!(
             fs::read_to_string(&path).expect("read"),
             "t_ns,fz_n\n5,1.5\n6,2.5\n"
+        );
+    }
+
+    #[test]
+    fn a_resumed_file_loses_only_its_torn_row_and_keeps_one_header() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("force.csv");
+        {
+            let mut f = CsvFile::create(path.clone()).expect("create");
+            f.row(&Row { t_ns: 5, fz_n: 1.5 }).expect("row");
+        }
+        // Killed part-way through the next row.
+        let mut text = fs::read_to_string(&path).expect("read");
+        text.push_str("6,2.");
+        fs::write(&path, &text).expect("tear");
+        let mut f = CsvFile::create(path.clone()).expect("reopen");
+        assert_eq!(f.cut_bytes(), 4);
+        f.row(&Row { t_ns: 7, fz_n: 3.5 }).expect("row");
+        assert_eq!(
+            fs::read_to_string(&path).expect("read"),
+            "t_ns,fz_n\n5,1.5\n7,3.5\n"
+        );
+        // A file holding only a header keeps it, and gains no second one.
+        let steps = dir.path().join("steps.csv");
+        drop(CsvFile::with_header_of(steps.clone(), &Row { t_ns: 0, fz_n: 0.0 }).expect("new"));
+        let mut f =
+            CsvFile::with_header_of(steps.clone(), &Row { t_ns: 0, fz_n: 0.0 }).expect("reopen");
+        assert_eq!(f.cut_bytes(), 0);
+        f.row(&Row { t_ns: 1, fz_n: 0.5 }).expect("row");
+        assert_eq!(
+            fs::read_to_string(&steps).expect("read"),
+            "t_ns,fz_n\n1,0.5\n"
         );
     }
 }

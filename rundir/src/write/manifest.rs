@@ -115,6 +115,29 @@ pub struct Manifest {
     /// Warnings from validation and the run.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// The segments a resumed run continued in (`gelrig resume`), oldest first; empty for a
+    /// run that went in one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resumed: Vec<Segment>,
+}
+
+/// One continuation of a run by `gelrig resume`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Segment {
+    /// When it started, RFC 3339 UTC.
+    pub started_utc: String,
+    /// Its start on the run's timebase, ns: rows stamped before it belong to earlier
+    /// segments.
+    pub t_start_ns: u64,
+    /// The step it continued at.
+    pub from_step: u32,
+    /// Process id.
+    pub pid: u32,
+    /// How the previous segment ended (`interrupted` when it was killed).
+    pub previous_status: String,
+    /// Why it ended, when it said.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub previous_message: Option<String>,
 }
 
 /// Reads a run directory's manifest.

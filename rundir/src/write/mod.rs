@@ -23,6 +23,7 @@ mod files;
 mod frame_writer;
 mod manifest;
 mod mcap_live;
+mod reopen;
 mod rows;
 
 use std::fs::{self, File, OpenOptions};
@@ -33,7 +34,7 @@ use rig::{ForceSample, Frame, SimTruth, Wrench};
 pub use files::write_atomic;
 use files::{Appender, CsvFile, Reserve, io};
 use frame_writer::FrameWriter;
-pub use manifest::{DeviceRecord, Manifest, Status, is_locked, read_manifest, run_file};
+pub use manifest::{DeviceRecord, Manifest, Segment, Status, is_locked, read_manifest, run_file};
 use rows::{AxesRow, ForceRow, SimStepRow, round6};
 pub use rows::{StepRow, TactileRow};
 
@@ -104,6 +105,25 @@ fn append_to<T: serde::Serialize>(
     }
 }
 
+/// Opens and locks the run's `run.lock` for the life of the recorder; fails if another
+/// process holds it.
+fn take_lock(dir: &Path) -> Result<File, RecordError> {
+    let lock_path = dir.join("run.lock");
+    let lock = OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .map_err(io(&lock_path))?;
+    lock.try_lock().map_err(|e| RecordError::Io {
+        path: lock_path.clone(),
+        source: std::io::Error::other(format!(
+            "{e}: another process is recording this run; fix: wait for it to end, or stop it"
+        )),
+    })?;
+    Ok(lock)
+}
+
 /// `<UTC time>_<name>` made safe for a file name.
 fn dir_name(name: &str) -> String {
     let stamp = jiff::Timestamp::now()
@@ -145,17 +165,7 @@ impl Recorder {
                 Err(e) => return Err(io(&dir)(e)),
             }
         }
-        let lock_path = dir.join("run.lock");
-        let lock = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&lock_path)
-            .map_err(io(&lock_path))?;
-        lock.try_lock().map_err(|e| RecordError::Io {
-            path: lock_path.clone(),
-            source: std::io::Error::other(e.to_string()),
-        })?;
+        let lock = take_lock(&dir)?;
         // First, before anything else can fill the disk.
         let reserve = Reserve::hold(dir.join("run.reserve"))?;
         let p = dir.join("protocol.yaml");

@@ -51,6 +51,8 @@ enum Command {
     Plan(cmd::plan::Cmd),
     /// Run a protocol; the shipped protocols run on the simulated rig in virtual time.
     Run(cmd::run::Cmd),
+    /// Continue an interrupted, aborted or failed run where it stopped, in its directory.
+    Resume(cmd::resume::Cmd),
     /// List runs with their status (completed, aborted, failed, running, interrupted).
     Runs(cmd::runs::Cmd),
     /// List the shipped protocols (run one by name: `gelrig run box-normal-flat`).
@@ -79,6 +81,7 @@ fn main() -> ExitCode {
         Command::Validate(c) => c.run(),
         Command::Plan(c) => c.run(),
         Command::Run(c) => c.run(),
+        Command::Resume(c) => c.run(),
         Command::Runs(c) => c.run(),
         Command::Protocols(c) => c.run(),
         Command::Schema(c) => c.run(),

@@ -6,6 +6,7 @@ pub(crate) mod plan;
 pub(crate) mod probe;
 pub(crate) mod protocols;
 pub(crate) mod report;
+pub(crate) mod resume;
 pub(crate) mod run;
 pub(crate) mod runs;
 pub(crate) mod schema;

@@ -10,6 +10,26 @@ use experiments::runner::{Cancel, RunRequest, run};
 use rig::ClockMode;
 use rundir::write::Status;
 
+/// How a run is timed, shown and watched (`gelrig run` and `gelrig resume`).
+#[derive(clap::Args)]
+pub(crate) struct RunOpts {
+    /// Clock of a simulated rig: `virtual` (as fast as possible) or a speed-up over real
+    /// time, e.g. `60` (an hour in a minute) or `1` (real time).
+    /// [default: `virtual`; the `twins:` scale of a `gelrig sim serve` rig]
+    #[arg(long)]
+    time_scale: Option<String>,
+    /// Plain progress lines even on a terminal.
+    #[arg(long, conflicts_with = "quiet")]
+    plain: bool,
+    /// No progress output.
+    #[arg(long)]
+    quiet: bool,
+    /// Watch the run in a browser: serves a read-only page on ADDR (default 127.0.0.1 and a
+    /// free port) and prints its URL. Without it, the run opens no socket.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
+    live: Option<String>,
+}
+
 /// Run a protocol, or several in sequence.
 #[derive(clap::Args)]
 pub(crate) struct Cmd {
@@ -28,21 +48,8 @@ pub(crate) struct Cmd {
     /// Seed of the simulated devices (noise, sensor offset).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Clock of a simulated rig: `virtual` (as fast as possible) or a speed-up over real
-    /// time, e.g. `60` (an hour in a minute) or `1` (real time).
-    /// [default: `virtual`; the `twins:` scale of a `gelrig sim serve` rig]
-    #[arg(long)]
-    time_scale: Option<String>,
-    /// Plain progress lines even on a terminal.
-    #[arg(long, conflicts_with = "quiet")]
-    plain: bool,
-    /// No progress output.
-    #[arg(long)]
-    quiet: bool,
-    /// Watch the run in a browser: serves a read-only page on ADDR (default 127.0.0.1 and a
-    /// free port) and prints its URL. Without it, the run opens no socket.
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
-    live: Option<String>,
+    #[command(flatten)]
+    pub(crate) opts: RunOpts,
     /// Also write the run as it goes in another format, beside the CSVs: `mcap` writes
     /// `run.mcap` (ROS 2 messages, as `gelrig export --format mcap` does).
     #[arg(long, value_name = "FORMAT", value_parser = ["mcap"])]
@@ -70,7 +77,7 @@ impl Cmd {
                 Ok(l) => l,
                 Err(code) => return Ok(code),
             };
-            let clock = match self.clock(&loaded, &loaded.real_devices()) {
+            let clock = match self.opts.clock(&loaded, &loaded.real_devices()) {
                 Ok(c) => c,
                 Err(e) => {
                     err!("error: {}: {e}", p.display());
@@ -85,7 +92,19 @@ impl Cmd {
             if total > 1 {
                 err!("queue: {} of {total}: {}", k + 1, loaded.protocol.name);
             }
-            let code = self.run_one(loaded, *clock, &cancel, &mut live)?;
+            let code = execute(
+                &self.opts,
+                Target {
+                    out: &self.out,
+                    seed: self.seed,
+                    record_mcap: self.record.as_deref() == Some("mcap"),
+                    resume: None,
+                },
+                loaded,
+                *clock,
+                &cancel,
+                &mut live,
+            )?;
             if code != ExitCode::SUCCESS {
                 if k + 1 < total {
                     let left: Vec<&str> = queue[k + 1..]
@@ -101,27 +120,45 @@ impl Cmd {
                 return Ok(code);
             }
         }
-        if let Some((_, server)) = live {
-            // The page's next poll shows how the last run ended before the server goes.
-            std::thread::sleep(std::time::Duration::from_millis(1500));
-            drop(server);
-        }
+        end_live(live);
         Ok(ExitCode::SUCCESS)
     }
+}
 
-    /// Runs one protocol of the queue; its exit code. The live view's server, when asked
-    /// for, is started with the first run and shows each run of the queue in turn.
-    fn run_one(
-        &self,
-        loaded: &experiments::protocol::Loaded,
-        clock: ClockMode,
-        cancel: &Cancel,
-        live: &mut Option<(Arc<experiments::view::LiveRun>, liveview::Server)>,
-    ) -> anyhow::Result<ExitCode> {
+/// The live view's library and server, started with the first run that asks.
+pub(crate) type Live = Option<(Arc<experiments::view::LiveRun>, liveview::Server)>;
+
+/// Lets the page's next poll show how the last run ended before the server goes.
+pub(crate) fn end_live(live: Live) {
+    if let Some((_, server)) = live {
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        drop(server);
+    }
+}
+
+/// Where a run records: a new directory under `out`, or the one it resumes.
+pub(crate) struct Target<'a> {
+    pub(crate) out: &'a std::path::Path,
+    pub(crate) seed: u64,
+    pub(crate) record_mcap: bool,
+    pub(crate) resume: Option<experiments::runner::Resume>,
+}
+
+/// Runs one protocol (of a queue, or resumed); its exit code. The live view's server, when
+/// asked for, is started with the first run and shows each run of the queue in turn.
+pub(crate) fn execute(
+    opts: &RunOpts,
+    target: Target<'_>,
+    loaded: &experiments::protocol::Loaded,
+    clock: ClockMode,
+    cancel: &Cancel,
+    live: &mut Live,
+) -> anyhow::Result<ExitCode> {
+    {
         let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
-        let mode = if self.quiet {
+        let mode = if opts.quiet {
             ProgressMode::Quiet
-        } else if self.plain {
+        } else if opts.plain {
             ProgressMode::Plain
         } else {
             ProgressMode::Auto
@@ -130,11 +167,11 @@ impl Cmd {
             err!("interrupted before the run started: nothing ran, no run directory");
             return Ok(ExitCode::from(130));
         }
-        let board = self
+        let board = opts
             .live
             .is_some()
             .then(|| liveview::Board::new(experiments::view::live_meta(loaded, &plan, clock)));
-        if let (Some(addr), Some(b)) = (&self.live, &board) {
+        if let (Some(addr), Some(b)) = (&opts.live, &board) {
             match live {
                 Some((lib, _)) => lib.set(b.clone()),
                 None => {
@@ -164,12 +201,13 @@ impl Cmd {
             RunRequest {
                 loaded,
                 plan: &plan,
-                out: self.out.clone(),
-                seed: self.seed,
+                out: target.out.to_path_buf(),
+                seed: target.seed,
                 clock,
                 progress: mode,
                 live: board,
-                record_mcap: self.record.as_deref() == Some("mcap"),
+                record_mcap: target.record_mcap,
+                resume: target.resume,
             },
             cancel.clone(),
         ));
@@ -189,10 +227,12 @@ impl Cmd {
             Status::Failed | Status::Running => ExitCode::from(1),
         })
     }
+}
 
+impl RunOpts {
     /// The run's clock: the twins' scale, virtual or `--time-scale` on a simulated rig,
     /// real time as soon as any real device is opened.
-    fn clock(
+    pub(crate) fn clock(
         &self,
         loaded: &experiments::protocol::Loaded,
         real: &[String],
@@ -226,7 +266,7 @@ impl Cmd {
 /// Installs SIGINT and SIGTERM handlers that count into `cancel`, on a thread of their own
 /// (the run's runtime cannot exist yet: whether its clock is virtual depends on the rig,
 /// which is still to be read). Returns once the handlers are in place.
-fn watch_signals(cancel: Cancel) -> anyhow::Result<()> {
+pub(crate) fn watch_signals(cancel: Cancel) -> anyhow::Result<()> {
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     std::thread::Builder::new()
         .name("signals".into())

@@ -35,10 +35,10 @@ fn main() {
                 for k in packet * 7..=last {
                     m.observe(k, arrival as u64);
                 }
-                if last > (window_s * 7000.0) as u64 {
-                    if let Some(t) = m.time_of(last) {
-                        errs.push((t as f64 - t_last, arrival - t_last));
-                    }
+                if last > (window_s * 7000.0) as u64
+                    && let Some(t) = m.time_of(last)
+                {
+                    errs.push((t as f64 - t_last, arrival - t_last));
                 }
             }
             cost_ns += start.elapsed().as_nanos() as f64 / (60_000.0 * 7.0);

@@ -83,6 +83,42 @@ fn set(doc: &mut Value, key: &str, value: Value) -> Result<(), (String, String)>
                     )
                 })?;
                 let n = items.len();
+                // A sequence item is a block (a mapping of one key, its kind): a key naming
+                // another kind would add a second key, which the parser reports far from the
+                // cause.
+                let kind_of = |v: &Value| match v {
+                    Value::Mapping(m) if m.len() == 1 => {
+                        m.keys().next().and_then(Value::as_str).map(str::to_string)
+                    }
+                    _ => None,
+                };
+                if let (Some(next), Some(kind)) = (parts.get(k + 1), items.get(i).and_then(kind_of))
+                    && kind != *next
+                {
+                    let same: Vec<String> = items
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, v)| kind_of(v).as_deref() == Some(*next))
+                        .map(|(j, _)| j.to_string())
+                        .collect();
+                    let prefix = parts[..k].join(".");
+                    return Err((
+                        format!(
+                            "--set {key}: item {i} of `{prefix}` is a `{kind}` block, not `{next}`"
+                        ),
+                        if same.is_empty() {
+                            format!(
+                                "no item of `{prefix}` is a `{next}` block; `gelrig plan` lists the blocks"
+                            )
+                        } else {
+                            format!(
+                                "the `{next}` block is item {} ({prefix}.{}.{next}…)",
+                                same.join(", "),
+                                same[0]
+                            )
+                        },
+                    ));
+                }
                 let Some(item) = items.get_mut(i) else {
                     return Err((
                         format!("--set {key}: the list has {n} items, no item {i}"),
@@ -137,6 +173,26 @@ mod tests {
         };
         let out: Value = serde_yaml::from_str(&apply(text, &named).expect("ok")).expect("ok");
         assert_eq!(out["name"], Value::from("mine"));
+    }
+
+    #[test]
+    fn a_set_into_the_wrong_block_names_the_right_one() {
+        let text = "sequence:\n  - home: {axes: [normal]}\n  - tare: {duration: 1 s}\n  - repeat: {times: 2, blocks: []}\n";
+        let o = Overrides {
+            set: vec!["sequence.0.repeat.times=3".into()],
+            name: None,
+        };
+        let (what, fix) = apply(text, &o).expect_err("item 0 is home");
+        assert!(
+            what.contains("item 0 of `sequence` is a `home` block, not `repeat`"),
+            "{what}"
+        );
+        assert!(fix.contains("item 2"), "{fix}");
+        let o = Overrides {
+            set: vec!["sequence.2.repeat.times=3".into()],
+            name: None,
+        };
+        assert!(apply(text, &o).is_ok());
     }
 
     #[test]

@@ -58,20 +58,25 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, RunDirError> {
     })?;
     // A resumed run is read as one: each step's rows from the segment that completed it.
     let segments = |steps: &[StepRow]| {
-        rundir::resumed::Segments::new(&manifest, steps.iter().map(|r| (r.step, r.t_end_ns)))
+        rundir::resumed::Segments::new(
+            &manifest,
+            steps.iter().map(|r| (r.step, r.trial, r.t_end_ns)),
+        )
     };
-    let steps: Vec<StepRow> = read_csv(&dir.join("steps.csv"))?;
-    let steps = rundir::resumed::Segments::last_per_step(steps, |r| r.step);
-    let seg = segments(&steps);
+    let all_steps: Vec<StepRow> = read_csv(&dir.join("steps.csv"))?;
+    // Segments are told from every step row, the abandoned attempts' included (a trial's
+    // segment is that of its last row); the run's steps are the last row of each.
+    let seg = segments(&all_steps);
+    let steps = rundir::resumed::Segments::last_per_step(all_steps, |r| r.step);
     let mut force: Vec<ForceRow> = read_optional(&dir.join("force.csv"))?.unwrap_or_default();
     let sim = read_optional::<SimRow>(&dir.join("sim_steps.csv"))?
         .map(|rows| rundir::resumed::Segments::last_per_step(rows, |r| r.step));
     let mut frames: Vec<FrameRow> = read_optional(&dir.join("frames.csv"))?.unwrap_or_default();
     let mut tactile = read_tactile(dir)?;
     if seg.resumed() {
-        force.retain(|r| seg.keeps(r.step, r.t_ns));
-        frames.retain(|r| seg.keeps(r.step, r.t_ns));
-        tactile.retain(|r| seg.keeps(r.step, r.t_ns));
+        force.retain(|r| seg.keeps(r.step, r.trial, r.t_ns));
+        frames.retain(|r| seg.keeps(r.step, r.trial, r.t_ns));
+        tactile.retain(|r| seg.keeps(r.step, r.trial, r.t_ns));
     }
     let mut markers = BTreeMap::new();
     let mut frame_size = None;

@@ -112,6 +112,8 @@ pub struct FrameRow {
     #[serde(default)]
     pub t_ns: u64,
     pub step: u32,
+    #[serde(default)]
+    pub trial: u32,
     /// The camera's frame counter.
     #[serde(default)]
     pub seq: Option<u64>,

@@ -6,8 +6,9 @@
 //! under way, from its first step), so its rows — force samples, frames, tactile states, a
 //! step row when a trial is redone — exist twice: the abandoned attempt and the one that
 //! completed. Readers keep, for every step, the rows of the segment in which its final row
-//! was written, and the last step row; rows of steps with no step row (between steps,
-//! approach and tare) are kept from every segment. Nothing is deleted from the files.
+//! was written, and the last step row; rows between the steps of a trial (its approach) from
+//! the segment in which the trial's last step was written; other rows with no step (the
+//! run's opening, between blocks) from every segment. Nothing is deleted from the files.
 
 use std::collections::BTreeMap;
 
@@ -20,21 +21,28 @@ pub struct Segments {
     starts: Vec<u64>,
     /// Per step, the segment its final row was written in.
     final_segment: BTreeMap<u32, usize>,
+    /// Per trial, the segment its last step row was written in.
+    trial_segment: BTreeMap<u32, usize>,
 }
 
 impl Segments {
-    /// The run's segments, from its manifest and the end times of its step rows.
-    pub fn new(manifest: &Manifest, step_ends: impl IntoIterator<Item = (u32, u64)>) -> Self {
+    /// The run's segments, from its manifest and its step rows' (step, trial, end time).
+    pub fn new(manifest: &Manifest, step_ends: impl IntoIterator<Item = (u32, u32, u64)>) -> Self {
         let mut starts = vec![0];
         starts.extend(manifest.resumed.iter().map(|s| s.t_start_ns));
         starts.sort_unstable();
         let mut s = Self {
             starts,
             final_segment: BTreeMap::new(),
+            trial_segment: BTreeMap::new(),
         };
-        for (step, t_end_ns) in step_ends {
+        for (step, trial, t_end_ns) in step_ends {
             let seg = s.segment_of(t_end_ns);
             s.final_segment.insert(step, seg);
+            if trial != 0 {
+                let t = s.trial_segment.entry(trial).or_insert(seg);
+                *t = (*t).max(seg);
+            }
         }
         s
     }
@@ -51,12 +59,14 @@ impl Segments {
             .saturating_sub(1)
     }
 
-    /// True if a row of `step` stamped `t_ns` is the run's (not an abandoned attempt's).
-    pub fn keeps(&self, step: u32, t_ns: u64) -> bool {
-        match self.final_segment.get(&step) {
-            Some(&seg) => self.segment_of(t_ns) == seg,
-            None => true,
-        }
+    /// True if a row of `step` in `trial` stamped `t_ns` is the run's (not an abandoned
+    /// attempt's).
+    pub fn keeps(&self, step: u32, trial: u32, t_ns: u64) -> bool {
+        let seg = match (step, self.final_segment.get(&step)) {
+            (0, _) => self.trial_segment.get(&trial).filter(|_| trial != 0),
+            (_, s) => s,
+        };
+        seg.is_none_or(|&seg| self.segment_of(t_ns) == seg)
     }
 
     /// Keeps the last row of each step, in step order of first appearance.
@@ -109,16 +119,33 @@ mod tests {
         // Step 3 was under way when segment 0 ended at ~100 s; resumed at 150 s, step 3
         // ended at 200 s.
         let m = manifest_with(&[150]);
-        let s = Segments::new(&m, [(1, 40), (2, 90), (3, 200)]);
+        let s = Segments::new(&m, [(1, 0, 40), (2, 0, 90), (3, 0, 200)]);
         assert!(s.resumed());
-        assert!(s.keeps(2, 80), "step 2's own rows");
-        assert!(!s.keeps(3, 95), "step 3's first, abandoned attempt");
-        assert!(s.keeps(3, 160), "step 3 as completed");
+        assert!(s.keeps(2, 0, 80), "step 2's own rows");
+        assert!(!s.keeps(3, 0, 95), "step 3's first, abandoned attempt");
+        assert!(s.keeps(3, 0, 160), "step 3 as completed");
         assert!(
-            s.keeps(0, 95) && s.keeps(0, 155),
-            "between steps: every segment"
+            s.keeps(0, 0, 95) && s.keeps(0, 0, 155),
+            "between blocks: every segment"
         );
-        assert!(s.keeps(4, 95), "a step never completed keeps what it has");
+        assert!(
+            s.keeps(4, 0, 95),
+            "a step never completed keeps what it has"
+        );
+    }
+
+    #[test]
+    fn a_trial_done_again_keeps_its_approach_from_the_attempt_that_completed() {
+        // Trial 2 (steps 3–4) cut short at 100 s in segment 0, done again from 150 s.
+        let m = manifest_with(&[150]);
+        let s = Segments::new(
+            &m,
+            [(1, 1, 40), (2, 1, 60), (3, 2, 90), (3, 2, 170), (4, 2, 190)],
+        );
+        assert!(!s.keeps(0, 2, 80), "the abandoned attempt's approach");
+        assert!(s.keeps(0, 2, 160), "the completed attempt's approach");
+        assert!(s.keeps(0, 1, 30), "trial 1 was completed in segment 0");
+        assert!(!s.keeps(3, 2, 85) && s.keeps(3, 2, 165));
     }
 
     #[test]

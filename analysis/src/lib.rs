@@ -20,11 +20,13 @@
 //! - [`slip`]: stick, incipient slip and slip per step from three cues.
 //! - [`field_force`]: force from the displacement field against a reference field.
 //! - [`tactile`]: a grasp's slip state frame by frame (stick, incipient, slip).
+//! - [`frame_timing`]: a camera's frame intervals, drops and duplicates, exposure matching.
 
 pub mod equilibrium;
 pub mod field;
 pub mod field_force;
 pub mod force_sensor;
+pub mod frame_timing;
 pub mod hysteresis;
 pub mod linearity;
 pub mod relaxation;

@@ -66,6 +66,16 @@ impl Clock {
         c
     }
 
+    /// The clock's reading at a wall-clock `instant` (a device twin's record of when it
+    /// sampled); for real and scaled clocks (a virtual clock's time is not the wall's).
+    pub fn ns_at(&self, instant: std::time::Instant) -> u64 {
+        let d = instant
+            .saturating_duration_since(self.origin.into_std())
+            .as_nanos() as f64
+            * self.scale;
+        self.origin_ns + d as u64
+    }
+
     /// The clock's mode.
     pub fn mode(&self) -> ClockMode {
         self.mode

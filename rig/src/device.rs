@@ -308,10 +308,36 @@ pub trait ForceSensor: Send {
     fn records_lost(&self) -> u64 {
         0
     }
+    /// Every sample received since the last call, oldest first, for matching frames to the
+    /// force inside their exposure. A sensor that streams faster than it is read (a Net F/T
+    /// at 7 kHz) keeps them; one sampled on demand returns none, and the caller uses what it
+    /// read.
+    fn take_received(&mut self) -> Vec<ForceSample> {
+        Vec::new()
+    }
+    /// How the sensor's sample times are put on the run's timebase, for the manifest and
+    /// the report's timing section; `None` when samples are stamped as they are read.
+    fn timing(&self) -> Option<DeviceTiming> {
+        None
+    }
     /// Ground truth of a simulated bench at the current time; `None` for real sensors.
     async fn truth(&mut self) -> Option<SimTruth> {
         None
     }
+}
+
+/// How a device's sample times are put on the run's timebase.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+pub struct DeviceTiming {
+    /// The method, in words ("sample counter against arrival times (lower envelope)").
+    pub method: String,
+    /// The constant latency subtracted, s (calibrated per setup: no model of arrival times
+    /// can tell it from a clock offset).
+    pub latency_s: f64,
+    /// The device clock's rate against the host's, ppm (positive: slow), once fitted.
+    pub drift_ppm: Option<f64>,
+    /// Samples stamped on arrival, before the model had seen enough.
+    pub stamped_on_arrival: u64,
 }
 
 /// One RGB frame.
@@ -330,6 +356,9 @@ pub struct Frame {
     /// Exact marker centres in pixels, when the camera is simulated (ground truth for
     /// tracking tests); `None` from a real camera.
     pub truth_px: Option<Vec<[f64; 2]>>,
+    /// The true exposure midpoint, ns, when the camera is simulated (what `t_ns` is
+    /// measured against); `None` from a real camera.
+    pub truth_t_ns: Option<u64>,
 }
 
 /// What a runner needs to know about a camera.
@@ -341,6 +370,9 @@ pub struct CameraInfo {
     pub height: u32,
     /// Frame rate, Hz.
     pub fps: f64,
+    /// Exposure, s, when known: a frame is matched to the force inside it (else to the
+    /// force within half a frame period of `t_ns`).
+    pub exposure_s: Option<f64>,
     /// Identity for the run manifest.
     pub identity: String,
 }
@@ -352,6 +384,11 @@ pub trait Camera: Send {
     fn info(&self) -> &CameraInfo;
     /// Waits for and returns the next frame.
     async fn capture(&mut self) -> Result<Frame, RigError>;
+    /// How frame times are put on the run's timebase; `None` when the camera's own
+    /// timestamps are used as they are.
+    fn timing(&self) -> Option<DeviceTiming> {
+        None
+    }
 }
 
 /// An external disturbance applied to a grasped object (thesis §6.3.2: the can swung by

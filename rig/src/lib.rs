@@ -25,8 +25,9 @@ pub mod units;
 pub use checked::{implausible_position, implausible_sample};
 pub use clock::{Clock, ClockMode};
 pub use device::{
-    Axis, AxisInfo, AxisStatus, AxisStopper, Camera, CameraInfo, Disturber, ForceInfo, ForceRange,
-    ForceSample, ForceSensor, Frame, GraspTruth, STATUS_SATURATED, SimTruth, Wrench,
+    Axis, AxisInfo, AxisStatus, AxisStopper, Camera, CameraInfo, DeviceTiming, Disturber,
+    ForceInfo, ForceRange, ForceSample, ForceSensor, Frame, GraspTruth, STATUS_SATURATED, SimTruth,
+    Wrench,
 };
 pub use error::RigError;
 pub use open::{OpenRequest, OpenedDevice, Rig, open};

@@ -194,6 +194,7 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                     timeout: std::time::Duration::from_millis(500),
                     retries: 9,
                     range: cfg.model.range(),
+                    latency_s: cfg.latency.map_or(0.0, |d| d.s()),
                 };
                 Box::new(
                     crate::drivers::netft::NetFtSensor::open(settings, req.clock.clone()).await?,
@@ -229,10 +230,23 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
         let camera: Box<dyn Camera> = match cfg.driver {
             CameraDriver::Sim => {
                 let p = sim_plant("camera")?;
+                let sim = cfg.simulate.clone().unwrap_or_default();
+                let timing = crate::sim::frame_timing::FrameTiming::new(
+                    cfg.fps.hz(),
+                    cfg.exposure.map_or(0.0, |d| d.s()),
+                    crate::sim::frame_timing::Injected {
+                        latency_s: sim.latency.map_or(0.0, |d| d.s()),
+                        jitter_s: sim.jitter.map_or(0.0, |d| d.s()),
+                        drift_ppm: sim.drift_ppm.unwrap_or(0.0),
+                    },
+                    cfg.latency.map_or(0.0, |d| d.s()),
+                    req.seed,
+                );
                 let info = CameraInfo {
                     width: cfg.width,
                     height: cfg.height,
                     fps: cfg.fps.hz(),
+                    exposure_s: Some(timing.exposure_s()),
                     identity: format!(
                         "simulated camera {}×{} at {} Hz",
                         cfg.width,
@@ -240,7 +254,7 @@ pub async fn open(config: &RigConfig, req: OpenRequest) -> Result<Rig, RigError>
                         cfg.fps.hz()
                     ),
                 };
-                Box::new(SimCamera::new(info, p, req.clock.clone(), req.seed))
+                Box::new(SimCamera::new(info, timing, p, req.clock.clone(), req.seed))
             }
             CameraDriver::ImageFolder => {
                 let path = std::path::PathBuf::from(cfg.path.clone().unwrap_or_default());
@@ -328,6 +342,7 @@ fn v4l2_camera(
         cfg.width,
         cfg.height,
         cfg.fps.hz(),
+        cfg.latency.map_or(0.0, |d| d.s()),
         clock,
     )?))
 }

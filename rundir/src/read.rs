@@ -117,6 +117,28 @@ pub struct FrameRow {
     /// The camera's frame counter.
     #[serde(default)]
     pub seq: Option<u64>,
+    /// The force during the exposure (tared, mean of the samples inside it), N; older runs
+    /// and runs without a force sensor lack it.
+    #[serde(default)]
+    pub fz_n: Option<f64>,
+    /// See `fz_n`.
+    #[serde(default)]
+    pub fx_n: Option<f64>,
+    /// See `fz_n`.
+    #[serde(default)]
+    pub fy_n: Option<f64>,
+    /// See `fz_n`, N·mm.
+    #[serde(default)]
+    pub tz_nmm: Option<f64>,
+    /// Spread of Fz over the exposure, N.
+    #[serde(default)]
+    pub fz_sd_n: Option<f64>,
+    /// Force samples inside the exposure (0: interpolated between the samples around it).
+    #[serde(default)]
+    pub force_samples: Option<u32>,
+    /// The true exposure midpoint on a simulated bench, ns.
+    #[serde(default)]
+    pub sim_t_ns: Option<u64>,
 }
 
 /// One row of `markers.csv`.

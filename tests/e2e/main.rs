@@ -23,6 +23,7 @@ mod resume;
 mod settle;
 mod signals;
 mod support;
+mod timing;
 mod track;
 mod validate;
 mod wire;

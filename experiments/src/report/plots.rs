@@ -285,8 +285,25 @@ where
                     .collect();
                 let named = !s.name.is_empty();
                 if matches!(s.mark, Mark::Line | Mark::LinePoints) {
+                    // A non-finite point breaks the line (a pause in the record, such as
+                    // the time between a run's interruption and its resumption).
+                    let mut pieces: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+                    for p in &s.points {
+                        if p.0.is_finite() && p.1.is_finite() && (!chart.log_y || p.1 > 0.0) {
+                            if let Some(last) = pieces.last_mut() {
+                                last.push(*p);
+                            }
+                        } else if pieces.last().is_some_and(|l| !l.is_empty()) {
+                            pieces.push(Vec::new());
+                        }
+                    }
+                    for piece in pieces.iter().skip(1).filter(|p| !p.is_empty()) {
+                        ctx.draw_series(LineSeries::new(piece.clone(), c.stroke_width(2)))
+                            .map_err(e)?;
+                    }
+                    let first = pieces.into_iter().next().unwrap_or_default();
                     let a = ctx
-                        .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
+                        .draw_series(LineSeries::new(first, c.stroke_width(2)))
                         .map_err(e)?;
                     if named {
                         a.label(s.name.as_str()).legend(move |(x, y)| {
@@ -391,5 +408,18 @@ mod tests {
             assert_ne!(w[0], w[1]);
         }
         assert_eq!(step_colour(0, 1), SEQUENTIAL);
+    }
+
+    #[test]
+    fn a_non_finite_point_breaks_the_line() {
+        let chart = |points: Vec<(f64, f64)>| Chart {
+            series: vec![Series::line("Fz", points, 0)],
+            ..Default::default()
+        };
+        let whole = vec![(0.0, 0.0), (1.0, 1.0), (2.0, 0.0), (3.0, 1.0)];
+        let mut broken = whole.clone();
+        broken.insert(2, (f64::NAN, f64::NAN));
+        let lines = |c: &Chart| svg(c).expect("svg").matches("<polyline").count();
+        assert_eq!(lines(&chart(broken)), lines(&chart(whole)) + 1);
     }
 }

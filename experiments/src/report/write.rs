@@ -104,6 +104,14 @@ pub(super) fn write(
         out.sections.push(Section { title, text, plots });
         summary["gelsight_force"] = json;
     }
+    if let Some((title, text, json, chart)) = super::camera_timing::section(data) {
+        let plots = match &chart {
+            Some(c) => vec![out.plot("frame_intervals", c)?],
+            None => Vec::new(),
+        };
+        out.sections.push(Section { title, text, plots });
+        summary["camera_timing"] = json;
+    }
     if let Some(note) = &r.model_note {
         summary["notes"] = json!([note]);
     }
@@ -128,12 +136,19 @@ fn force_time(data: &RunData, out: &mut Out) -> Result<(), ReportError> {
     }
     // At most ~4000 points per channel: every k-th sample.
     let k = (data.force.len() / 4000).max(1);
+    // The line breaks where a resumed run's segment starts: nothing was recorded between.
+    let breaks: Vec<u64> = data.manifest.resumed.iter().map(|s| s.t_start_ns).collect();
     let pts = |g: &dyn Fn(&super::ForceRow) -> f64| -> Vec<(f64, f64)> {
-        data.force
-            .iter()
-            .step_by(k)
-            .map(|r| (r.t_ns as f64 * 1e-9, g(r)))
-            .collect()
+        let mut out = Vec::new();
+        let mut last_t = 0;
+        for r in data.force.iter().step_by(k) {
+            if breaks.iter().any(|&b| last_t < b && b <= r.t_ns) {
+                out.push((f64::NAN, f64::NAN));
+            }
+            last_t = r.t_ns;
+            out.push((r.t_ns as f64 * 1e-9, g(r)));
+        }
+        out
     };
     let chart = Chart {
         title: "Force against time (shaded: steps)".into(),

@@ -315,6 +315,19 @@ impl<'a> Exec<'a> {
     /// Ends the watchdog and hands back the recorder, journaling what the watchdog saw
     /// after it was disarmed.
     pub(super) async fn close(mut self) -> Recorder {
+        let mut timing = BTreeMap::new();
+        if let Some(t) = self.rig.camera.as_ref().and_then(|c| c.timing()) {
+            timing.insert("camera".to_string(), t);
+        }
+        if let Some(t) = match &self.monitor {
+            Some(m) => m.sensor_timing().await,
+            None => None,
+        } {
+            timing.insert("force".to_string(), t);
+        }
+        if !timing.is_empty() {
+            let _ = self.rec.update_manifest(|m| m.timing = timing);
+        }
         if let Some(mut m) = self.monitor.take() {
             m.shutdown().await;
             let late = m.late_errors();

@@ -22,6 +22,7 @@ mod adaptive;
 mod blocks;
 mod cancel;
 mod exec;
+mod frame_force;
 mod motion;
 mod resume;
 mod retract;
@@ -240,6 +241,7 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
             .map(|d| format!("{}:{}: {}", d.line, d.column, d.message))
             .collect(),
         resumed: Vec::new(),
+        timing: BTreeMap::new(),
     };
     let mut rec = match &req.resume {
         None => {

@@ -34,6 +34,10 @@ fn home_allowance_s(span: f64, max_speed: f64) -> f64 {
     4.0 * span.abs() / max_speed.max(1e-9) + 60.0
 }
 
+/// How long a frame waits for the force samples of its exposure, ns of run time: past it,
+/// the frame is matched with what has come (interpolated, or no force).
+const FRAME_FORCE_WAIT_NS: u64 = 200_000_000;
+
 impl Exec<'_> {
     /// The deadline of an axis that must cover `distance` at `speed` from now.
     pub(super) fn deadline_for(
@@ -222,10 +226,11 @@ impl Exec<'_> {
             return Ok(());
         };
         let frame = cam.capture().await?;
-        let index = self.rec.frame(&frame, self.step, self.trial)?;
+        let (fps, exposure_s) = (cam.info().fps, cam.info().exposure_s);
+        let force = self.frame_force(&frame, exposure_s, fps).await;
+        let index = self.rec.frame(&frame, self.step, self.trial, force)?;
         if let (Some(b), Some(i)) = (self.progress.live(), index) {
             // In a frame stream the camera's counter steps by its rate over the stream's.
-            let fps = cam.info().fps;
             let stride = (self.next_frame_stream.is_some())
                 .then_some(self.active.frames_hz)
                 .flatten()
@@ -241,6 +246,30 @@ impl Exec<'_> {
             self.tactile_frame(&frame, index.unwrap_or(0), truth.as_ref())?;
         }
         Ok(())
+    }
+
+    /// The force during the frame's exposure (`frames.csv`): waits, boundedly, until the
+    /// watchdog has samples past the exposure's end, asking it for a read now.
+    async fn frame_force(
+        &mut self,
+        frame: &rig::Frame,
+        exposure_s: Option<f64>,
+        fps: f64,
+    ) -> Option<rundir::write::FrameForce> {
+        let m = self.monitor.as_ref()?;
+        let window = super::frame_force::window_ns(frame.t_ns, exposure_s, fps);
+        let deadline = self.clock.now_ns() + FRAME_FORCE_WAIT_NS;
+        // One read now; after it, the scheduled reads (asking again and again would spin
+        // without letting the clock move on).
+        m.read_soon();
+        while m.history_until_ns().is_none_or(|t| t < window.1) && self.clock.now_ns() < deadline {
+            tokio::select! {
+                _ = m.reading() => {}
+                _ = self.clock.sleep_until_ns(deadline) => {}
+            }
+        }
+        let samples = m.history_around(window.0, window.1);
+        super::frame_force::match_window(&samples, &self.tare, window, frame.t_ns)
     }
 
     /// Judges a frame of a record block: `tactile.csv`, the progress line, the move's stop.

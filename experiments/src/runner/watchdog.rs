@@ -37,6 +37,10 @@ use tokio::sync::Notify;
 /// deadline, so reaching this means the plan task is stuck, not busy.
 const QUEUE_CAP: usize = 600_000;
 
+/// Samples kept for matching frames: 3 s, and at most 3 s at 7 kHz.
+const HISTORY_NS: u64 = 3_000_000_000;
+const HISTORY_CAP: usize = 21_000;
+
 /// The safety limits of the protocol, on tared values.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Limits {
@@ -120,6 +124,12 @@ pub(crate) struct Trip {
 
 struct State {
     readings: VecDeque<Reading>,
+    /// Every sample of the last few seconds, untared (the sensor's full stream where it
+    /// keeps one, else what was read): frames are matched to the force inside their
+    /// exposure from it.
+    history: VecDeque<ForceSample>,
+    /// The next read is due now (a frame waits for the force of its exposure).
+    read_now: bool,
     dropped: u64,
     /// Records the sensor's own sequence lost, as of its last reading.
     sensor_lost: u64,
@@ -173,6 +183,8 @@ impl Monitor {
         stoppers.sort_by_key(|(r, _)| !r.presses());
         let state = Arc::new(Mutex::new(State {
             readings: VecDeque::new(),
+            history: VecDeque::new(),
+            read_now: false,
             dropped: 0,
             sensor_lost: 0,
             stream_hz: None,
@@ -211,6 +223,27 @@ impl Monitor {
             trip_done,
             task: Some(task),
         }
+    }
+
+    /// Asks for a read now rather than at the next scheduled one.
+    pub(crate) fn read_soon(&self) {
+        lock(&self.state).read_now = true;
+        self.wake_watchdog.notify_one();
+    }
+
+    /// The time of the newest sample in the history, ns.
+    pub(crate) fn history_until_ns(&self) -> Option<u64> {
+        lock(&self.state).history.back().map(|s| s.t_ns)
+    }
+
+    /// The samples of the history from `from_ns` to `to_ns`, with the one just before and
+    /// the one just after (for interpolation), oldest first.
+    pub(crate) fn history_around(&self, from_ns: u64, to_ns: u64) -> Vec<ForceSample> {
+        let s = lock(&self.state);
+        let h = &s.history;
+        let first = h.partition_point(|x| x.t_ns < from_ns).saturating_sub(1);
+        let end = (h.partition_point(|x| x.t_ns <= to_ns) + 1).min(h.len());
+        h.range(first..end.max(first)).copied().collect()
     }
 
     /// Takes every reading queued since the last call, oldest first.
@@ -291,6 +324,11 @@ impl Monitor {
         self.alarm.notified().await;
     }
 
+    /// How the sensor's sample times are put on the run's timebase.
+    pub(crate) async fn sensor_timing(&self) -> Option<rig::DeviceTiming> {
+        self.sensor.lock().await.timing()
+    }
+
     /// Ground truth of a simulated sensor.
     pub(crate) async fn truth(&self) -> Option<SimTruth> {
         self.sensor.lock().await.truth().await
@@ -349,7 +387,9 @@ impl Watch {
             }
             let stream_due = next_stream.is_some_and(|t| now >= t);
             let monitor_due = now >= next_monitor;
-            if stream_due || monitor_due {
+            // An extra read a frame asked for: the schedules stay as they are.
+            let asked = std::mem::take(&mut lock(&self.state).read_now);
+            if stream_due || monitor_due || asked {
                 let outcome = self.read().await;
                 let now = self.clock.now_ns();
                 match outcome {
@@ -415,7 +455,22 @@ impl Watch {
         let read = async {
             let mut sensor = self.sensor.lock().await;
             let r = sensor.read().await;
-            lock(&self.state).sensor_lost = sensor.records_lost();
+            let received = sensor.take_received();
+            let mut s = lock(&self.state);
+            s.sensor_lost = sensor.records_lost();
+            match (&r, received.is_empty()) {
+                (Ok(x), true) => s.history.push_back(*x),
+                _ => s.history.extend(received),
+            }
+            let newest = s.history.back().map_or(0, |x| x.t_ns);
+            while s.history.len() > HISTORY_CAP
+                || s.history
+                    .front()
+                    .is_some_and(|x| x.t_ns + HISTORY_NS < newest)
+            {
+                s.history.pop_front();
+            }
+            drop(s);
             r
         };
         // Biased: a sensor that answers at once (the simulated one, a queued datagram)

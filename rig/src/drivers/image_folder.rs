@@ -52,6 +52,7 @@ impl ImageFolderCamera {
                 width,
                 height,
                 fps,
+                exposure_s: None,
                 identity: format!("{device} ({} frames)", files.len()),
             },
             files,
@@ -114,6 +115,7 @@ impl Camera for ImageFolderCamera {
             height: img.height(),
             rgb: img.into_raw(),
             truth_px: None,
+            truth_t_ns: None,
         })
     }
 }

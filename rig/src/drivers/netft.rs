@@ -2,7 +2,8 @@
 //!
 //! On open the driver reads counts-per-force and counts-per-torque and their units from
 //! the box (READCALINFO over TCP) — never a hard-coded 1e6 — then starts real-time
-//! streaming. `read` drains every datagram that arrived and returns the newest record.
+//! streaming. A task of the driver's own receives the stream and stamps each datagram as it
+//! arrives; `read` returns the newest record, and [`ForceSensor::take_received`] every record.
 //! Loss and reordering are counted as netft_utils does, `seqdiff = (i32)(rdt − last)`, but
 //! only within what the stream can explain: a gap of `seqdiff − 1` lost records must fit
 //! the time since the last record at the box's highest rate, and a late record must be
@@ -14,20 +15,34 @@
 //! sample it returned before: no new record within the timeout is a timeout. The box's
 //! `ft_sequence` is unwrapped to 64 bits (it is the sensor's own clock). Status bits 30/31
 //! (out of range, error) surface as [`STATUS_SATURATED`] on the sample.
+//!
+//! **Sample times.** A record's arrival is late by the network's delay, which varies by
+//! milliseconds. The box's sample counter is its own clock: the driver fits it against the
+//! arrival times ([`CounterClock`], the lower envelope) and stamps each sample with when the
+//! box took it, less a latency calibrated per setup ([`NetFtSettings::latency_s`]); until
+//! the model has seen 2 s of records, samples carry their arrival time less that latency.
 
+use std::collections::VecDeque;
 use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use async_trait::async_trait;
+use std::sync::atomic::{AtomicBool, Ordering};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpStream, UdpSocket};
+
+use tokio::net::TcpStream;
+use tokio::sync::Notify;
 
 use super::netft_rdt::{
     CMD_BIAS, CMD_START, CMD_STOP, CalInfo, READCALINFO, Record, STATUS_ERROR, STATUS_OUT_OF_RANGE,
     request,
 };
-use crate::device::{ForceInfo, ForceRange, ForceSample, ForceSensor, STATUS_SATURATED, Wrench};
-use crate::{Clock, RigError};
+use crate::clock_sync::CounterClock;
+use crate::device::{
+    DeviceTiming, ForceInfo, ForceRange, ForceSample, ForceSensor, STATUS_SATURATED, Wrench,
+};
+use crate::{Clock, RigError, lock};
 
 /// Where the box is.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,6 +57,10 @@ pub struct NetFtSettings {
     pub retries: u32,
     /// Sensor ranges (Nano17: 70 N axial, 50 N tangential, 500 N·mm).
     pub range: ForceRange,
+    /// The constant delay of records on their way to the host, s: subtracted from every
+    /// sample time. No model of arrival times can tell it from a clock offset, so it is
+    /// calibrated per setup (an event both the camera and the sensor see); 0 if unknown.
+    pub latency_s: f64,
 }
 
 /// Stream health counters.
@@ -71,22 +90,58 @@ fn explainable_gap(elapsed_s: f64) -> i64 {
     (elapsed_s.max(0.0) * MAX_RATE_HZ * 2.0) as i64 + 256
 }
 
-/// The driver.
-pub struct NetFtSensor {
-    info: ForceInfo,
-    settings: NetFtSettings,
-    socket: UdpSocket,
-    n_per_count: f64,
-    nmm_per_count: f64,
+/// Samples kept for [`ForceSensor::take_received`] when nobody takes them: 10 s at 7 kHz.
+const RECEIVED_KEPT: usize = 70_000;
+/// The receive buffer asked for, bytes.
+const RECEIVE_BUFFER_BYTES: usize = 4 << 20;
+/// Errors kept for `read` (the stream goes on; the first ones say what happened).
+const ERRORS_KEPT: usize = 16;
+
+/// The box's sample counter, `ft_sequence`, counts at its internal rate (7000 Hz, manual
+/// 9620-05-Net FT), fitted over 20 s in bins of 0.1 s (BENCHMARKS.md, "F/T clock model":
+/// 6 µs worst error under 2 ms latency, ±5 ms jitter and 50 ppm drift, 12 ns per sample).
+fn ft_clock(latency_ns: f64) -> CounterClock {
+    CounterClock::new(MAX_RATE_HZ, 0.1, 20.0).with_known_latency_ns(latency_ns)
+}
+
+/// What the receive task has taken in, shared with `read`.
+struct Stream {
     last_rdt: Option<u32>,
     /// Wall time of the last accepted record, for the explainable gap.
     last_at: Option<std::time::Instant>,
     ft_epoch: u64,
     last_ft: Option<u32>,
     latest: Option<ForceSample>,
-    clock: Clock,
-    /// Loss and reordering so far.
-    pub stats: StreamStats,
+    /// Samples not yet taken by [`ForceSensor::take_received`] (bounded).
+    received: VecDeque<ForceSample>,
+    /// Errors not yet reported by `read`, oldest first (bounded).
+    errors: VecDeque<RigError>,
+    /// The box's sample counter against arrival times: samples are stamped with when they
+    /// were taken, not when their datagram came in.
+    ft_clock: CounterClock,
+    /// The last sample time given (times never go back).
+    last_t_ns: u64,
+    latency_ns: u64,
+    stamped_on_arrival: u64,
+    stats: StreamStats,
+    n_per_count: f64,
+    nmm_per_count: f64,
+}
+
+/// The driver. A task of its own receives the stream and stamps each datagram the moment
+/// it arrives (a stamp taken when the runner next reads would be late by up to a read
+/// period, and the clock model would inherit that); `read` takes what it has gathered.
+pub struct NetFtSensor {
+    info: ForceInfo,
+    settings: NetFtSettings,
+    socket: Arc<std::net::UdpSocket>,
+    stream: Arc<Mutex<Stream>>,
+    news: Arc<Notify>,
+    /// Ends the receive thread (within its 100 ms read timeout).
+    quit: Arc<AtomicBool>,
+    _receiver: std::thread::JoinHandle<()>,
+    /// `stats.received` when `read` last returned a sample.
+    returned: u64,
 }
 
 /// `host` or `host:port` (default `port`) to a socket address.
@@ -143,19 +198,57 @@ impl NetFtSensor {
             device: dev.clone(),
             detail,
         })?;
-        let socket = UdpSocket::bind(if settings.rdt.is_ipv4() {
+        let socket = std::net::UdpSocket::bind(if settings.rdt.is_ipv4() {
             "0.0.0.0:0"
         } else {
             "[::]:0"
         })
-        .await
         .map_err(io)?;
-        socket.connect(settings.rdt).await.map_err(io)?;
+        socket.connect(settings.rdt).map_err(io)?;
+        // At 7 kHz the default receive buffer (~200 small datagrams) holds 30 ms: room for
+        // seconds (the kernel caps it at net.core.rmem_max).
+        let _ = socket2::SockRef::from(&socket).set_recv_buffer_size(RECEIVE_BUFFER_BYTES);
+        socket
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .map_err(io)?;
+        let socket = Arc::new(socket);
+        let latency_ns = (settings.latency_s.max(0.0) * 1e9).round() as u64;
+        let stream = Arc::new(Mutex::new(Stream {
+            last_rdt: None,
+            last_at: None,
+            ft_epoch: 0,
+            last_ft: None,
+            latest: None,
+            received: VecDeque::new(),
+            errors: VecDeque::new(),
+            ft_clock: ft_clock(latency_ns as f64),
+            last_t_ns: 0,
+            latency_ns,
+            stamped_on_arrival: 0,
+            stats: StreamStats::default(),
+            n_per_count,
+            nmm_per_count,
+        }));
+        let news = Arc::new(Notify::new());
+        let quit = Arc::new(AtomicBool::new(false));
+        let receiver = {
+            let (socket, stream, news, quit) = (
+                Arc::clone(&socket),
+                Arc::clone(&stream),
+                Arc::clone(&news),
+                Arc::clone(&quit),
+            );
+            let dev = dev.clone();
+            std::thread::Builder::new()
+                .name("netft-receive".into())
+                .spawn(move || receive(&socket, &stream, &news, &quit, &clock, &dev))
+                .map_err(io)?
+        };
         let mut s = Self {
             info: ForceInfo {
                 model: "Net F/T".into(),
                 range: settings.range,
-                max_rate_hz: 7000.0,
+                max_rate_hz: MAX_RATE_HZ,
                 identity: {
                     let (fu, tu) = cal.unit_names();
                     format!(
@@ -166,38 +259,49 @@ impl NetFtSensor {
             },
             settings,
             socket,
-            n_per_count,
-            nmm_per_count,
-            last_rdt: None,
-            last_at: None,
-            ft_epoch: 0,
-            last_ft: None,
-            latest: None,
-            clock,
-            stats: StreamStats::default(),
+            stream,
+            news,
+            quit,
+            _receiver: receiver,
+            returned: 0,
         };
         s.start().await?;
         Ok(s)
     }
 
+    /// Loss and reordering so far.
+    pub fn stats(&self) -> StreamStats {
+        lock(&self.stream).stats
+    }
+
     /// Sends the start request until a record arrives (bounded).
     async fn start(&mut self) -> Result<(), RigError> {
         let dev = name(&self.settings);
+        let per_try = self.settings.timeout / (self.settings.retries + 1).max(1);
         for _ in 0..=self.settings.retries {
-            self.socket
-                .send(&request(CMD_START, 0))
-                .await
-                .map_err(|source| RigError::Io {
-                    device: dev.clone(),
-                    source,
-                })?;
-            let per_try = self.settings.timeout / (self.settings.retries + 1).max(1);
-            if tokio::time::timeout(per_try, self.receive(true))
-                .await
-                .is_ok_and(|r| r.is_ok())
-                && self.latest.is_some()
-            {
-                return Ok(());
+            let news = self.news.notified();
+            tokio::pin!(news);
+            news.as_mut().enable();
+            self.send(CMD_START).await?;
+            let deadline = tokio::time::Instant::now() + per_try;
+            loop {
+                {
+                    let mut st = lock(&self.stream);
+                    // A refused request (nothing listening) is worth another try; the
+                    // last try's error is the one reported.
+                    st.errors.clear();
+                    if st.latest.is_some() {
+                        return Ok(());
+                    }
+                }
+                if tokio::time::timeout_at(deadline, news.as_mut())
+                    .await
+                    .is_err()
+                {
+                    break;
+                }
+                news.set(self.news.notified());
+                news.as_mut().enable();
             }
         }
         Err(RigError::Timeout {
@@ -206,80 +310,96 @@ impl NetFtSensor {
         })
     }
 
-    /// Zeroes the box's reading at the current load (software bias).
-    pub async fn bias(&mut self) -> Result<(), RigError> {
-        let dev = name(&self.settings);
+    async fn send(&self, command: u16) -> Result<(), RigError> {
         self.socket
-            .send(&request(CMD_BIAS, 0))
-            .await
+            .send(&request(command, 0))
             .map(|_| ())
             .map_err(|source| RigError::Io {
-                device: dev,
+                device: name(&self.settings),
                 source,
             })
+    }
+
+    /// Zeroes the box's reading at the current load (software bias).
+    pub async fn bias(&mut self) -> Result<(), RigError> {
+        self.send(CMD_BIAS).await
     }
 
     /// Stops the stream.
     pub async fn stop(&mut self) -> Result<(), RigError> {
-        let dev = name(&self.settings);
-        self.socket
-            .send(&request(CMD_STOP, 0))
-            .await
-            .map(|_| ())
-            .map_err(|source| RigError::Io {
-                device: dev,
-                source,
-            })
+        self.send(CMD_STOP).await
     }
+}
 
-    /// Takes in datagrams: waits for one if `wait`, then drains what is queued. A datagram
-    /// that is not whole records, or a record the sequence cannot explain, ends the call
-    /// with an error (the rest of the queue is taken by the next call).
-    async fn receive(&mut self, wait: bool) -> Result<(), RigError> {
-        let dev = name(&self.settings);
-        let mut buf = [0u8; 36 * 40];
-        let mut first = wait;
-        loop {
-            let n = if first {
-                first = false;
-                self.socket.recv(&mut buf).await
-            } else {
-                match self.socket.try_recv(&mut buf) {
-                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return Ok(()),
-                    r => r,
-                }
-            };
-            let n = match n {
-                Ok(n) => n,
-                // A refused send (nothing listening) reads back as an error: report it.
-                Err(source) => {
-                    return Err(RigError::Io {
-                        device: dev.clone(),
-                        source,
-                    });
-                }
-            };
-            let t_ns = self.clock.now_ns();
-            let Some(records) = Record::parse_all(&buf[..n]) else {
-                self.stats.malformed += 1;
-                return Err(RigError::Garbled {
-                    device: dev,
-                    detail: format!(
-                        "a datagram of {n} bytes is not whole 36-byte RDT records; \
-                         fix: check that nothing else sends to this port"
-                    ),
-                });
-            };
-            for r in records {
-                self.take(r, t_ns).map_err(|detail| RigError::Garbled {
-                    device: dev.clone(),
-                    detail,
-                })?;
-            }
+impl Drop for NetFtSensor {
+    fn drop(&mut self) {
+        self.quit.store(true, Ordering::Relaxed);
+    }
+}
+
+/// The receive thread: stamps each datagram on arrival and takes its records in. A
+/// datagram that is not whole records, or a record the sequence cannot explain, is kept as
+/// an error for `read`; the stream goes on. A thread, not a task: a stamp must not wait for
+/// an async runtime busy with something else (rendering a frame, encoding a PNG).
+fn receive(
+    socket: &std::net::UdpSocket,
+    stream: &Mutex<Stream>,
+    news: &Notify,
+    quit: &AtomicBool,
+    clock: &Clock,
+    dev: &str,
+) {
+    let mut buf = [0u8; 36 * 40];
+    while !quit.load(Ordering::Relaxed) {
+        let got = socket.recv(&mut buf);
+        let t_ns = clock.now_ns();
+        if let Err(e) = &got
+            && matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+            )
+        {
+            continue;
         }
+        let mut st = lock(stream);
+        let error = match got {
+            // A refused send (nothing listening) reads back as an error: report it.
+            Err(source) => Some(RigError::Io {
+                device: dev.to_string(),
+                source,
+            }),
+            Ok(n) => match Record::parse_all(&buf[..n]) {
+                None => {
+                    st.stats.malformed += 1;
+                    Some(RigError::Garbled {
+                        device: dev.to_string(),
+                        detail: format!(
+                            "a datagram of {n} bytes is not whole 36-byte RDT records; \
+                             fix: check that nothing else sends to this port"
+                        ),
+                    })
+                }
+                Some(records) => records
+                    .into_iter()
+                    .find_map(|r| st.take(r, t_ns).err())
+                    .map(|detail| RigError::Garbled {
+                        device: dev.to_string(),
+                        detail,
+                    }),
+            },
+        };
+        if let Some(e) = error
+            && st.errors.len() < ERRORS_KEPT
+        {
+            st.errors.push_back(e);
+        }
+        drop(st);
+        news.notify_waiters();
     }
+}
 
-    fn take(&mut self, r: Record, t_ns: u64) -> Result<(), String> {
+impl Stream {
+    fn take(&mut self, r: Record, arrival_ns: u64) -> Result<(), String> {
         let now = std::time::Instant::now();
         if let (Some(last), Some(at), Some(last_ft)) = (self.last_rdt, self.last_at, self.last_ft) {
             let d = i64::from(r.rdt_seq.wrapping_sub(last) as i32);
@@ -314,11 +434,25 @@ impl NetFtSensor {
         }
         self.last_ft = Some(r.ft_seq);
         self.stats.received += 1;
+        let seq = self.ft_epoch + r.ft_seq as u64;
+        self.ft_clock.observe(seq, arrival_ns);
+        // Once the model has seen enough, the sample's time is when it was taken (never
+        // after it arrived, never before the previous one); until then, its arrival less
+        // the known latency.
+        let t_ns = match self.ft_clock.time_of(seq) {
+            Some(t) => t.min(arrival_ns),
+            None => {
+                self.stamped_on_arrival += 1;
+                arrival_ns.saturating_sub(self.latency_ns)
+            }
+        }
+        .max(self.last_t_ns);
+        self.last_t_ns = t_ns;
         let c = r.counts.map(f64::from);
         let saturated = r.status & (STATUS_OUT_OF_RANGE | STATUS_ERROR) != 0;
-        self.latest = Some(ForceSample {
+        let sample = ForceSample {
             t_ns,
-            ft_seq: self.ft_epoch + r.ft_seq as u64,
+            ft_seq: seq,
             wrench: Wrench {
                 fx_n: c[0] * self.n_per_count,
                 fy_n: c[1] * self.n_per_count,
@@ -332,7 +466,12 @@ impl NetFtSensor {
             } else {
                 r.status
             },
-        });
+        };
+        if self.received.len() >= RECEIVED_KEPT {
+            self.received.pop_front();
+        }
+        self.received.push_back(sample);
+        self.latest = Some(sample);
         Ok(())
     }
 }
@@ -344,29 +483,49 @@ impl ForceSensor for NetFtSensor {
     }
 
     fn records_lost(&self) -> u64 {
-        self.stats.lost
+        lock(&self.stream).stats.lost
+    }
+
+    fn take_received(&mut self) -> Vec<ForceSample> {
+        lock(&self.stream).received.drain(..).collect()
+    }
+
+    fn timing(&self) -> Option<DeviceTiming> {
+        let st = lock(&self.stream);
+        Some(DeviceTiming {
+            method: "the box's sample counter against arrival times (lower envelope)".into(),
+            latency_s: st.latency_ns as f64 * 1e-9,
+            drift_ppm: st.ft_clock.drift_ppm(),
+            stamped_on_arrival: st.stamped_on_arrival,
+        })
     }
 
     async fn read(&mut self) -> Result<ForceSample, RigError> {
-        let before = self.stats.received;
-        self.receive(false).await?;
-        // Nothing new queued: wait for the next record, boundedly. Reordered or duplicate
-        // records are no news; only a newer record ends the wait.
+        // Only a record newer than the last one returned ends the wait: reordered or
+        // duplicate records are no news. Bounded by the timeout.
         let deadline = tokio::time::Instant::now() + self.settings.timeout;
-        while self.stats.received == before {
-            match tokio::time::timeout_at(deadline, self.receive(true)).await {
-                Ok(r) => r?,
-                Err(_) => {
-                    return Err(RigError::Timeout {
-                        device: format!("{} (stream stopped)", name(&self.settings)),
-                        timeout_ms: self.settings.timeout.as_millis() as u64,
-                    });
+        loop {
+            let news = self.news.notified();
+            tokio::pin!(news);
+            news.as_mut().enable();
+            {
+                let mut st = lock(&self.stream);
+                if let Some(e) = st.errors.pop_front() {
+                    return Err(e);
+                }
+                if st.stats.received > self.returned
+                    && let Some(s) = st.latest
+                {
+                    self.returned = st.stats.received;
+                    return Ok(s);
                 }
             }
+            if tokio::time::timeout_at(deadline, news).await.is_err() {
+                return Err(RigError::Timeout {
+                    device: format!("{} (stream stopped)", name(&self.settings)),
+                    timeout_ms: self.settings.timeout.as_millis() as u64,
+                });
+            }
         }
-        self.latest.ok_or_else(|| RigError::Timeout {
-            device: name(&self.settings),
-            timeout_ms: self.settings.timeout.as_millis() as u64,
-        })
     }
 }

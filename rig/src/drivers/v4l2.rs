@@ -5,7 +5,11 @@
 //! threads) and hands each frame over a channel, converted from YUYV to RGB, with the
 //! driver's buffer timestamp when it is CLOCK_MONOTONIC (flags & 0xE000 == 0x2000: the run's
 //! timebase on a real bench, spec `devices.md` §4) and its `sequence`, whose gaps are
-//! dropped frames. Otherwise the frame is stamped on arrival.
+//! dropped frames. Otherwise the frame is stamped on arrival. The buffer timestamp is taken
+//! at the start of the exposure (`V4L2_BUF_FLAG_TSTAMP_SRC_SOE`, what uvcvideo sets) or at
+//! the end of the frame (`…_EOF`); [`exposure_midpoint_ns`] moves it to the exposure's
+//! midpoint with the exposure the camera reports (`V4L2_CID_EXPOSURE_ABSOLUTE`, 100 µs
+//! units), less a latency calibrated per setup.
 
 use std::sync::mpsc;
 use std::time::Duration;
@@ -28,6 +32,36 @@ pub struct V4l2Camera {
     /// Frames the driver dropped (gaps in `sequence`).
     pub dropped: u64,
     last_seq: Option<u64>,
+}
+
+/// `V4L2_BUF_FLAG_TIMESTAMP_MASK` and its CLOCK_MONOTONIC value.
+const TIMESTAMP_MASK: u32 = 0xE000;
+const TIMESTAMP_MONOTONIC: u32 = 0x2000;
+/// `V4L2_BUF_FLAG_TSTAMP_SRC_MASK` and its start-of-exposure value (0 is end of frame).
+const TSTAMP_SRC_MASK: u32 = 0x0007_0000;
+const TSTAMP_SRC_SOE: u32 = 0x0001_0000;
+/// `V4L2_CID_EXPOSURE_ABSOLUTE`, in 100 µs units.
+const CID_EXPOSURE_ABSOLUTE: u32 = 0x009a_0902;
+
+/// The exposure midpoint of a frame whose buffer carries `timestamp_ns` with `flags`, for an
+/// exposure of `exposure_ns` (when known) and a calibrated `latency_ns`; `None` unless the
+/// timestamp is CLOCK_MONOTONIC (the frame is then stamped on arrival).
+pub fn exposure_midpoint_ns(
+    timestamp_ns: u64,
+    flags: u32,
+    exposure_ns: Option<u64>,
+    latency_ns: u64,
+) -> Option<u64> {
+    if flags & TIMESTAMP_MASK != TIMESTAMP_MONOTONIC {
+        return None;
+    }
+    let half = exposure_ns.unwrap_or(0) / 2;
+    let t = if flags & TSTAMP_SRC_MASK == TSTAMP_SRC_SOE {
+        timestamp_ns + half
+    } else {
+        timestamp_ns.saturating_sub(half)
+    };
+    Some(t.saturating_sub(latency_ns))
 }
 
 /// YUYV (4:2:2) to RGB8, ITU-R BT.601.
@@ -59,15 +93,17 @@ impl V4l2Camera {
         width: u32,
         height: u32,
         fps: f64,
+        latency_s: f64,
         clock: Clock,
     ) -> Result<Self, RigError> {
+        let latency_ns = (latency_s.max(0.0) * 1e9) as u64;
         let device = format!("camera {path}");
-        let (init_tx, init_rx) = mpsc::channel::<Result<(u32, u32), String>>();
+        let (init_tx, init_rx) = mpsc::channel::<Result<(u32, u32, Option<u64>), String>>();
         let (tx, frames) = tokio::sync::mpsc::channel(4);
         let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
         let (p, st) = (path.to_string(), stop.clone());
         std::thread::spawn(move || {
-            let setup = || -> std::io::Result<(Device, u32, u32)> {
+            let setup = || -> std::io::Result<(Device, u32, u32, Option<u64>)> {
                 let dev = Device::with_path(&p)?;
                 let mut fmt = dev.format()?;
                 fmt.width = width;
@@ -83,9 +119,18 @@ impl V4l2Camera {
                 let _ = dev.set_params(&v4l::video::capture::Parameters::with_fps(
                     fps.round().max(1.0) as u32,
                 ));
-                Ok((dev, fmt.width, fmt.height))
+                // A camera without the control: frames are matched to the force within
+                // half a frame period instead of inside the exposure.
+                let exposure_ns = match dev.control(CID_EXPOSURE_ABSOLUTE) {
+                    Ok(c) => match c.value {
+                        v4l::control::Value::Integer(v) if v > 0 => Some(v as u64 * 100_000),
+                        _ => None,
+                    },
+                    Err(_) => None,
+                };
+                Ok((dev, fmt.width, fmt.height, exposure_ns))
             };
-            let (dev, w, h) = match setup() {
+            let (dev, w, h, exposure_ns) = match setup() {
                 Ok(x) => x,
                 Err(e) => {
                     let _ = init_tx.send(Err(e.to_string()));
@@ -99,17 +144,19 @@ impl V4l2Camera {
                     return;
                 }
             };
-            let _ = init_tx.send(Ok((w, h)));
+            let _ = init_tx.send(Ok((w, h, exposure_ns)));
             while !st.load(std::sync::atomic::Ordering::Relaxed) {
                 let item = match stream.next() {
                     Ok((buf, meta)) => {
-                        let monotonic = meta.flags.bits() & 0xE000 == 0x2000;
-                        let t_ns = if monotonic {
-                            meta.timestamp.sec as u64 * 1_000_000_000
-                                + meta.timestamp.usec as u64 * 1000
-                        } else {
-                            clock.now_ns()
-                        };
+                        let stamp_ns = meta.timestamp.sec as u64 * 1_000_000_000
+                            + meta.timestamp.usec as u64 * 1000;
+                        let t_ns = exposure_midpoint_ns(
+                            stamp_ns,
+                            meta.flags.bits(),
+                            exposure_ns,
+                            latency_ns,
+                        )
+                        .unwrap_or_else(|| clock.now_ns().saturating_sub(latency_ns));
                         Ok(Frame {
                             t_ns,
                             seq: meta.sequence as u64,
@@ -117,6 +164,7 @@ impl V4l2Camera {
                             height: h,
                             rgb: yuyv_to_rgb(buf, w as usize, h as usize),
                             truth_px: None,
+                            truth_t_ns: None,
                         })
                     }
                     Err(e) => Err(e.to_string()),
@@ -127,7 +175,7 @@ impl V4l2Camera {
                 }
             }
         });
-        let (w, h) = init_rx
+        let (w, h, exposure_ns) = init_rx
             .recv_timeout(Duration::from_secs(5))
             .map_err(|_| RigError::Timeout {
                 device: device.clone(),
@@ -144,6 +192,7 @@ impl V4l2Camera {
                 width: w,
                 height: h,
                 fps,
+                exposure_s: exposure_ns.map(|e| e as f64 * 1e-9),
                 identity: format!("V4L2 {path} {w}×{h} YUYV"),
             },
             frames,
@@ -196,6 +245,28 @@ mod tests {
     use super::*;
 
     #[test]
+    fn buffer_timestamps_move_to_the_exposure_midpoint() {
+        let soe = TIMESTAMP_MONOTONIC | TSTAMP_SRC_SOE;
+        // Start of exposure + half of 10 ms − 1 ms latency.
+        assert_eq!(
+            exposure_midpoint_ns(100_000_000, soe, Some(10_000_000), 1_000_000),
+            Some(104_000_000)
+        );
+        // End of frame − half the exposure.
+        assert_eq!(
+            exposure_midpoint_ns(100_000_000, TIMESTAMP_MONOTONIC, Some(10_000_000), 0),
+            Some(95_000_000)
+        );
+        // Unknown exposure: the timestamp as it is.
+        assert_eq!(
+            exposure_midpoint_ns(100_000_000, soe, None, 0),
+            Some(100_000_000)
+        );
+        // Not CLOCK_MONOTONIC (0x4000: copied from the output): not usable.
+        assert_eq!(exposure_midpoint_ns(100_000_000, 0x4000, None, 0), None);
+    }
+
+    #[test]
     fn yuyv_grey_and_red() {
         // Y=128, U=V=128 is mid grey; a saturated red is Y=81, U=90, V=240.
         let rgb = yuyv_to_rgb(&[128, 128, 128, 128, 81, 90, 81, 240], 4, 1);
@@ -211,6 +282,7 @@ mod tests {
             640,
             480,
             25.0,
+            0.0,
             Clock::new(crate::ClockMode::Monotonic),
         )
         .err()

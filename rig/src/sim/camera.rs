@@ -1,4 +1,5 @@
-//! A simulated camera: frames on a fixed grid of exposure times, rendered from the plant.
+//! A simulated camera: frames exposed on the camera's own clock, delivered late, stamped as
+//! a careful driver would ([`FrameTiming`]), rendered from the plant at their true exposure.
 
 use std::sync::{Arc, Mutex};
 
@@ -6,9 +7,10 @@ use async_trait::async_trait;
 
 use mechanics::response::ContactModel;
 
+use super::frame_timing::FrameTiming;
 use super::plant::Plant;
 use super::render::{Renderer, SurfaceView};
-use crate::device::{Camera, CameraInfo, Frame};
+use crate::device::{Camera, CameraInfo, DeviceTiming, Frame};
 use crate::{Clock, RigError, lock};
 
 /// Delivers frames at `fps` on the run's clock, showing the markers displaced by the plant.
@@ -16,8 +18,7 @@ pub(crate) struct SimCamera {
     info: CameraInfo,
     plant: Arc<Mutex<Plant>>,
     clock: Clock,
-    period_ns: u64,
-    last_t_ns: Option<u64>,
+    timing: FrameTiming,
     renderer: Renderer,
     /// The camera's own copy of the contact model: fields are computed outside the plant's
     /// lock, so rendering never holds up the force sensor.
@@ -27,7 +28,13 @@ pub(crate) struct SimCamera {
 }
 
 impl SimCamera {
-    pub(crate) fn new(info: CameraInfo, plant: Arc<Mutex<Plant>>, clock: Clock, seed: u64) -> Self {
+    pub(crate) fn new(
+        info: CameraInfo,
+        timing: FrameTiming,
+        plant: Arc<Mutex<Plant>>,
+        clock: Clock,
+        seed: u64,
+    ) -> Self {
         let (renderer, model) = {
             let p = lock(&plant);
             (
@@ -35,13 +42,11 @@ impl SimCamera {
                 p.field_model(),
             )
         };
-        let period_ns = (1e9 / info.fps.max(1e-3)).round() as u64;
         Self {
             info,
             plant,
             clock,
-            period_ns,
-            last_t_ns: None,
+            timing,
             renderer,
             model,
             noise_key: seed.wrapping_mul(0xD1B5_4A32_D192_ED03),
@@ -55,31 +60,36 @@ impl Camera for SimCamera {
         &self.info
     }
 
+    fn timing(&self) -> Option<DeviceTiming> {
+        Some(self.timing.report())
+    }
+
     async fn capture(&mut self) -> Result<Frame, RigError> {
-        let now = self.clock.now_ns();
-        let mut t = now.div_ceil(self.period_ns) * self.period_ns;
-        if let Some(last) = self.last_t_ns
-            && t <= last
-        {
-            t = last + self.period_ns;
-        }
-        self.clock.sleep_until_ns(t).await;
-        self.last_t_ns = Some(t);
-        let pose = lock(&self.plant).surface_pose(t);
+        let times = self.timing.next_after(self.clock.now_ns());
+        // The picture is the gel as it is at the exposure's midpoint; the host has it only
+        // when it arrives.
+        self.clock.sleep_until_ns(times.exposure_mid_ns).await;
+        let pose = lock(&self.plant).surface_pose(times.exposure_mid_ns);
         let surface = self.model.field(pose.state).map(|field| SurfaceView {
             field,
             centre_mm: pose.centre_mm,
             rotation_rad: pose.rotation_rad,
         });
-        let seq = t / self.period_ns;
-        let (rgb, truth) = self.renderer.render(surface.as_ref(), seq ^ self.noise_key);
+        let (rgb, truth) = self
+            .renderer
+            .render(surface.as_ref(), times.seq ^ self.noise_key);
+        // Stamped at its arrival, as the kernel stamps a buffer: not when this task wakes
+        // (a timer tick later on a real clock).
+        self.clock.sleep_until_ns(times.arrival_ns).await;
+        let t_ns = self.timing.stamp(times.seq, times.arrival_ns);
         Ok(Frame {
-            t_ns: t,
-            seq,
+            t_ns,
+            seq: times.seq,
             width: self.info.width,
             height: self.info.height,
             rgb,
             truth_px: Some(truth),
+            truth_t_ns: Some(times.exposure_mid_ns),
         })
     }
 }

@@ -15,6 +15,7 @@ mod axis;
 mod camera;
 mod follow;
 mod force;
+pub mod frame_timing;
 mod grasp;
 pub(crate) mod plant;
 pub mod render;

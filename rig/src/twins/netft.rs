@@ -7,8 +7,9 @@
 //! requester at `rate_hz`; `0x0000` stops; `0x0042` biases to the current load. Counters:
 //! `rdt_seq` from 1 per packet, `ft_seq` at 7000 Hz; both wrap at 2³² and can be started
 //! near the wrap. Saturation sets status bits 31|30. Faults: loss, reordering,
-//! duplication, ignoring requests, a stopped stream, a one-off sequence jump and a short
-//! or empty datagram.
+//! duplication, ignoring requests, a stopped stream, a one-off sequence jump, a short or
+//! empty datagram, and the link's latency and jitter and the box's clock drift (with the
+//! time each record was sampled kept as the truth a clock model is measured against).
 
 use std::net::{SocketAddr, TcpListener, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -42,6 +43,14 @@ pub struct Faults {
     /// Send a datagram of this many zero bytes in place of the next record, once (a short
     /// or empty datagram: not whole records).
     pub short_once: Option<usize>,
+    /// Network latency every record has, ms.
+    pub latency_ms: f64,
+    /// Extra delay of each record, in 0…2× this, ms ("± jitter" about its middle): the link
+    /// delivers in bursts and stays first-in first-out, as one cable is.
+    pub jitter_ms: f64,
+    /// The box's crystal runs this many ppm slow: its records (and `ft_seq`) come that much
+    /// further apart in host time.
+    pub drift_ppm: f64,
 }
 
 /// Box parameters.
@@ -90,17 +99,23 @@ pub struct NetFtTwin {
     pub load: Arc<Mutex<Wrench>>,
     source: Arc<Mutex<Option<LoadSource>>>,
     faults: Arc<Mutex<Faults>>,
+    /// When each of the last records was sampled, by its `ft_seq` (the truth a clock model is
+    /// measured against).
+    sampled: Arc<Mutex<std::collections::VecDeque<(u32, Instant)>>>,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
 }
+
+/// Sample times kept for [`NetFtTwin::sample_times`].
+const SAMPLED_KEPT: usize = 1 << 20;
 
 impl NetFtTwin {
     /// Binds UDP and TCP on 127.0.0.1 (ephemeral ports) and starts serving.
     pub fn spawn(params: TwinParams) -> std::io::Result<Self> {
         let udp = UdpSocket::bind("127.0.0.1:0")?;
-        // Wake at least once per record period (and at most every 1 ms) to send on time.
-        let period_s = 1.0 / params.rate_hz.max(1.0);
-        udp.set_read_timeout(Some(Duration::from_secs_f64(period_s.clamp(1e-4, 1e-3))))?;
+        // Polled between sleeps: a socket timeout is counted in scheduler ticks (4–8 ms),
+        // which would send the records in bursts; a sleep is a high-resolution timer.
+        udp.set_nonblocking(true)?;
         let tcp = TcpListener::bind("127.0.0.1:0")?;
         tcp.set_nonblocking(true)?;
         let (rdt, calibration) = (udp.local_addr()?, tcp.local_addr()?);
@@ -112,8 +127,14 @@ impl NetFtTwin {
             fixed: load.clone(),
             source: Arc::clone(&source),
         };
-        let (f, s, p) = (faults.clone(), stop.clone(), params.clone());
-        let stream = std::thread::spawn(move || serve_rdt(&udp, &p, &l, &f, &s));
+        let sampled = Arc::new(Mutex::new(std::collections::VecDeque::new()));
+        let (f, s, p, log) = (
+            faults.clone(),
+            stop.clone(),
+            params.clone(),
+            Arc::clone(&sampled),
+        );
+        let stream = std::thread::spawn(move || serve_rdt(&udp, &p, &l, &f, &s, &log));
         let (s2, cal) = (stop.clone(), params.cal);
         let calib = std::thread::spawn(move || serve_cal(&tcp, cal, &s2));
         Ok(Self {
@@ -122,6 +143,7 @@ impl NetFtTwin {
             load,
             source,
             faults,
+            sampled,
             stop,
             threads: vec![stream, calib],
         })
@@ -146,6 +168,11 @@ impl NetFtTwin {
     /// Fault switches.
     pub fn faults(&self) -> &Arc<Mutex<Faults>> {
         &self.faults
+    }
+
+    /// When the box sampled each of its last records (up to 2²⁰), by `ft_seq`.
+    pub fn sample_times(&self) -> Vec<(u32, Instant)> {
+        lock(&self.sampled).iter().copied().collect()
     }
 }
 
@@ -174,13 +201,75 @@ fn serve_cal(tcp: &TcpListener, cal: CalInfo, stop: &AtomicBool) {
     }
 }
 
+/// Records on their way to the host. Jitter is modelled as a link that delivers in bursts
+/// — it holds what is sent for a random 0…2×`jitter_ms`, then releases it together (a busy
+/// switch, interrupt coalescing, a scheduler) — so every record's extra delay lies in
+/// 0…2×jitter and the link stays first-in first-out, as one cable is. (Independent delays
+/// per record kept in order would at 7 kHz make nearly every record wait for the slowest
+/// of the last seventy: the delay would sit at its maximum, not spread over the range.)
+struct Link {
+    pending: std::collections::VecDeque<(Instant, Vec<u8>, SocketAddr)>,
+    /// The current burst is released then.
+    hold_until: Option<Instant>,
+    rng: rand::rngs::StdRng,
+}
+
+impl Link {
+    /// Queues `bytes` to leave after the injected delay.
+    fn send(&mut self, udp: &UdpSocket, bytes: Vec<u8>, to: SocketAddr, f: &Faults) {
+        use rand::Rng;
+        if f.latency_ms <= 0.0 && f.jitter_ms <= 0.0 && self.pending.is_empty() {
+            let _ = udp.send_to(&bytes, to);
+            return;
+        }
+        let now = Instant::now();
+        let release = match self.hold_until {
+            Some(h) if h > now => h,
+            _ => {
+                let hold_ms = if f.jitter_ms > 0.0 {
+                    self.rng.random_range(0.0..2.0 * f.jitter_ms)
+                } else {
+                    0.0
+                };
+                let h = now + Duration::from_secs_f64(hold_ms * 1e-3);
+                self.hold_until = Some(h);
+                h
+            }
+        };
+        let at = release + Duration::from_secs_f64(f.latency_ms.max(0.0) * 1e-3);
+        self.pending.push_back((at, bytes, to));
+    }
+
+    /// When the next queued record is due.
+    fn due(&self) -> Option<Instant> {
+        self.pending.front().map(|(at, _, _)| *at)
+    }
+
+    /// Sends what is due.
+    fn flush(&mut self, udp: &UdpSocket) {
+        let now = Instant::now();
+        while self.pending.front().is_some_and(|(at, _, _)| *at <= now) {
+            if let Some((_, bytes, to)) = self.pending.pop_front() {
+                let _ = udp.send_to(&bytes, to);
+            }
+        }
+    }
+}
+
 fn serve_rdt(
     udp: &UdpSocket,
     p: &TwinParams,
     load: &Loads,
     faults: &Mutex<Faults>,
     stop: &AtomicBool,
+    sampled: &Mutex<std::collections::VecDeque<(u32, Instant)>>,
 ) {
+    use rand::SeedableRng;
+    let mut link = Link {
+        pending: std::collections::VecDeque::new(),
+        hold_until: None,
+        rng: rand::rngs::StdRng::seed_from_u64(u64::from(p.first_seq.1)),
+    };
     let (n_per_count, nmm_per_count) = p.cal.scales().unwrap_or((1e-6, 1e-6));
     let mut client: Option<SocketAddr> = None;
     let mut remaining: Option<u32> = None;
@@ -192,7 +281,7 @@ fn serve_rdt(
     let mut held: Option<Vec<u8>> = None;
     let mut buf = [0u8; 64];
     while !stop.load(Ordering::Relaxed) {
-        if let Ok((n, from)) = udp.recv_from(&mut buf) {
+        while let Ok((n, from)) = udp.recv_from(&mut buf) {
             let f = lock(faults).clone();
             if let (false, Some((cmd, count))) = (f.ignore_requests, parse_request(&buf[..n])) {
                 match cmd {
@@ -206,19 +295,29 @@ fn serve_rdt(
                 }
             }
         }
+        link.flush(udp);
         // Send every record that is due (the socket timeout is coarse under load); after a
         // stall of more than 50 records the box skips ahead, as a real one drops them.
+        let drift = 1.0 + lock(faults).drift_ppm * 1e-6;
+        let period = period.mul_f64(drift.max(1e-3));
         let now = Instant::now();
         if now < next {
+            sleep_until(&[Some(next), link.due()], now);
             continue;
         }
         if now > next + 50 * period {
+            // The box's own counter kept counting through the records it could not send.
+            let skipped = ((now - next).as_secs_f64() / period.as_secs_f64()) as u32;
+            ft_seq = ft_seq.wrapping_add(skipped.wrapping_mul(ft_step));
             next = now;
         }
         while next <= now && client.is_some() {
+            let sampled_at = next;
             next += period;
-            send_one(
+            let ft = ft_seq;
+            let sent = send_one(
                 udp,
+                &mut link,
                 p,
                 load,
                 faults,
@@ -231,16 +330,35 @@ fn serve_rdt(
                 &mut held,
                 (n_per_count, nmm_per_count),
             );
+            if sent {
+                let mut log = lock(sampled);
+                if log.len() >= SAMPLED_KEPT {
+                    log.pop_front();
+                }
+                log.push_back((ft, sampled_at));
+            }
         }
         if client.is_none() {
             next = now;
         }
+        sleep_until(&[client.map(|_| next), link.due()], Instant::now());
     }
 }
 
+/// Sleeps until the earliest of `events`, and at most 1 ms (requests are polled).
+fn sleep_until(events: &[Option<Instant>], now: Instant) {
+    let limit = now + Duration::from_millis(1);
+    let wake = events.iter().flatten().copied().fold(limit, Instant::min);
+    if wake > now {
+        std::thread::sleep(wake - now);
+    }
+}
+
+/// Sends (or, as a fault, withholds) one record; true if a record was sampled.
 #[allow(clippy::too_many_arguments)]
 fn send_one(
     udp: &UdpSocket,
+    link: &mut Link,
     p: &TwinParams,
     load: &Loads,
     faults: &Mutex<Faults>,
@@ -252,9 +370,9 @@ fn send_one(
     ft_step: u32,
     held: &mut Option<Vec<u8>>,
     (n_per_count, nmm_per_count): (f64, f64),
-) {
+) -> bool {
     {
-        let Some(to) = *client else { return };
+        let Some(to) = *client else { return false };
         let f = {
             let mut f = lock(faults);
             let now = f.clone();
@@ -263,11 +381,11 @@ fn send_one(
             now
         };
         if f.silent {
-            return;
+            return false;
         }
         if let Some(n) = f.short_once {
             let _ = udp.send_to(&vec![0u8; n], to);
-            return;
+            return false;
         }
         let (w, saturated) = load.now(&p.range);
         let net = w.minus(bias).as_array();
@@ -298,19 +416,20 @@ fn send_one(
         }
         let every = |n: u32| n > 0 && k.is_multiple_of(n);
         if every(f.drop_every) {
-            return;
+            return true;
         }
         let bytes = rec.to_bytes().to_vec();
         if every(f.reorder_every) && held.is_none() {
             *held = Some(bytes);
-            return;
+            return true;
         }
-        let _ = udp.send_to(&bytes, to);
+        link.send(udp, bytes.clone(), to, &f);
         if let Some(h) = held.take() {
-            let _ = udp.send_to(&h, to);
+            link.send(udp, h, to, &f);
         }
         if every(f.duplicate_every) {
-            let _ = udp.send_to(&bytes, to);
+            link.send(udp, bytes, to, &f);
         }
+        true
     }
 }

@@ -18,14 +18,15 @@ use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use rig::Frame;
 
 use super::files::{CsvFile, write_new};
-use super::rows::{FrameRow, MarkerTruthRow, round6};
+use super::rows::{FrameForce, FrameRow, MarkerTruthRow, round6};
 use super::{RecordError, append_to};
 
 /// Frames queued before the plan waits for the encoder.
 const QUEUE: usize = 4;
 
 enum Job {
-    Frame(FrameJob),
+    /// Boxed: the frame's metadata would make every queued message as large.
+    Frame(Box<FrameJob>),
     /// Make everything written so far durable, then answer.
     Sync(SyncSender<()>),
 }
@@ -35,6 +36,7 @@ struct FrameJob {
     frame: Frame,
     step: u32,
     trial: u32,
+    force: Option<FrameForce>,
 }
 
 /// The encoding thread and its queue.
@@ -75,13 +77,15 @@ impl FrameWriter {
         frame: &Frame,
         step: u32,
         trial: u32,
+        force: Option<FrameForce>,
     ) -> Result<(), RecordError> {
-        let job = Job::Frame(FrameJob {
+        let job = Job::Frame(Box::new(FrameJob {
             n,
             frame: frame.clone(),
             step,
             trial,
-        });
+            force,
+        }));
         self.submit(job)
     }
 
@@ -184,6 +188,7 @@ fn write(
         frame,
         step,
         trial,
+        force,
     } = job;
     let file = format!("frames/{n:06}.png");
     let path = dir.join(&file);
@@ -223,6 +228,15 @@ fn write(
         trial: *trial,
         file: &file,
         seq: frame.seq,
+        fx_n: force.map(|f| round6(f.wrench.fx_n)),
+        fy_n: force.map(|f| round6(f.wrench.fy_n)),
+        fz_n: force.map(|f| round6(f.wrench.fz_n)),
+        tx_nmm: force.map(|f| round6(f.wrench.tx_nmm)),
+        ty_nmm: force.map(|f| round6(f.wrench.ty_nmm)),
+        tz_nmm: force.map(|f| round6(f.wrench.tz_nmm)),
+        fz_sd_n: force.and_then(|f| f.fz_sd_n).map(round6),
+        force_samples: force.map(|f| f.samples),
+        sim_t_ns: frame.truth_t_ns,
     })?;
     if let Some(truth) = &frame.truth_px {
         let path = dir.join("sim_markers.csv");

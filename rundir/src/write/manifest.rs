@@ -119,6 +119,10 @@ pub struct Manifest {
     /// run that went in one.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub resumed: Vec<Segment>,
+    /// How each device's times were put on the run's timebase (`force`, `camera`), as of
+    /// the end of the run.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub timing: BTreeMap<String, rig::DeviceTiming>,
 }
 
 /// One continuation of a run by `gelrig resume`.

@@ -36,7 +36,7 @@ use files::{Appender, CsvFile, Reserve, io};
 use frame_writer::FrameWriter;
 pub use manifest::{DeviceRecord, Manifest, Segment, Status, is_locked, read_manifest, run_file};
 use rows::{AxesRow, ForceRow, SimStepRow, round6};
-pub use rows::{StepRow, TactileRow};
+pub use rows::{FrameForce, StepRow, TactileRow};
 
 /// Failure to record.
 #[derive(Debug, thiserror::Error)]
@@ -359,11 +359,18 @@ impl Recorder {
         frame: &Frame,
         step: u32,
         trial: u32,
+        force: Option<FrameForce>,
     ) -> Result<Option<u64>, RecordError> {
-        self.data(|r| r.write_frame(frame, step, trial))
+        self.data(|r| r.write_frame(frame, step, trial, force))
     }
 
-    fn write_frame(&mut self, frame: &Frame, step: u32, trial: u32) -> Result<u64, RecordError> {
+    fn write_frame(
+        &mut self,
+        frame: &Frame,
+        step: u32,
+        trial: u32,
+        force: Option<FrameForce>,
+    ) -> Result<u64, RecordError> {
         if self.frames.is_none() {
             let d = self.dir.join("frames");
             fs::create_dir_all(&d).map_err(io(&d))?;
@@ -371,7 +378,7 @@ impl Recorder {
         }
         let n = self.frame_count;
         if let Some(w) = &mut self.frames {
-            w.send(n, frame, step, trial)?;
+            w.send(n, frame, step, trial, force)?;
         }
         self.frame_count += 1;
         Ok(n)

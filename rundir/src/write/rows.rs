@@ -1,5 +1,6 @@
 //! The rows of the run directory's CSV files.
 
+use rig::Wrench;
 use serde::{Deserialize, Serialize};
 
 /// One row of `steps.csv`.
@@ -167,6 +168,28 @@ pub(super) struct FrameRow<'a> {
     pub(super) trial: u32,
     pub(super) file: &'a str,
     pub(super) seq: u64,
+    pub(super) fx_n: Option<f64>,
+    pub(super) fy_n: Option<f64>,
+    pub(super) fz_n: Option<f64>,
+    pub(super) tx_nmm: Option<f64>,
+    pub(super) ty_nmm: Option<f64>,
+    pub(super) tz_nmm: Option<f64>,
+    pub(super) fz_sd_n: Option<f64>,
+    pub(super) force_samples: Option<u32>,
+    pub(super) sim_t_ns: Option<u64>,
+}
+
+/// The force a frame saw: the tared wrench averaged over the force samples inside its
+/// exposure (`frames.csv`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameForce {
+    /// Mean tared wrench over the samples inside the exposure; with none inside, the
+    /// wrench interpolated at the exposure midpoint between the samples around it.
+    pub wrench: Wrench,
+    /// Standard deviation of Fz over those samples, N (`None` for fewer than two).
+    pub fz_sd_n: Option<f64>,
+    /// Samples inside the exposure (0: interpolated).
+    pub samples: u32,
 }
 
 /// One row of `tactile.csv`: a frame's live tactile state in a grasp (thesis §6.3) and, on

@@ -11,8 +11,13 @@ use std::fmt;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::device::ForceRange;
 use crate::units::{AxisQuantity, AxisSpeed, AxisUnit, Duration, Force, Frequency, Length};
+
+mod devices;
+pub use devices::{
+    CameraConfig, CameraDriver, DisturberConfig, DisturberDriver, ForceConfig, ForceDriver,
+    ForceModel, SimCameraTiming,
+};
 
 /// The part an axis plays on the bench.
 #[derive(
@@ -201,124 +206,6 @@ pub enum AxisDriver {
     Smc100,
     /// A Modbus TCP drive described by the `modbus:` register map.
     Modbus,
-}
-
-/// The force/torque sensor.
-#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct ForceConfig {
-    /// Which driver talks to it.
-    pub driver: ForceDriver,
-    /// Sensor model, which fixes its ranges.
-    #[serde(default)]
-    pub model: ForceModel,
-    /// Highest rate the sensor delivers samples at (default 1 kHz).
-    #[serde(default)]
-    pub max_rate: Option<Frequency>,
-    /// Net F/T box address, `host` or `host:rdt_port` (RDT port default 49152).
-    #[serde(default)]
-    pub address: Option<String>,
-    /// Net F/T calibration (TCP) port, default 49151.
-    #[serde(default)]
-    pub calibration_port: Option<u16>,
-    /// SocketCAN interface of an `ati_can` sensor (`can0`).
-    #[serde(default)]
-    pub can_interface: Option<String>,
-    /// CAN base id of an `ati_can` sensor (DIP switches).
-    #[serde(default)]
-    pub base_id: Option<u32>,
-    /// Counts per N of an `ati_can` sensor's short data (from the box's configuration).
-    #[serde(default)]
-    pub counts_per_force: Option<f64>,
-    /// Counts per N·mm of an `ati_can` sensor's short data.
-    #[serde(default)]
-    pub counts_per_torque: Option<f64>,
-}
-
-/// Force sensor drivers available in this build.
-#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-pub enum ForceDriver {
-    /// The in-process simulated Nano17 reading the simulated elastomer.
-    Sim,
-    /// An ATI Net F/T box: RDT over UDP at `address`, calibration read from the box.
-    NetFt,
-    /// An ATI Net F/T on a CAN bus (short data) on `can_interface` at `base_id`, with the
-    /// box's `counts_per_force` and `counts_per_torque` (needs the `socketcan` feature).
-    AtiCan,
-}
-
-/// Force/torque sensor models with known ranges.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum ForceModel {
-    /// ATI Nano17: 70 N axial, 50 N tangential, 500 N·mm.
-    #[default]
-    Nano17,
-}
-
-impl ForceModel {
-    /// Ranges and resolution of the model.
-    pub fn range(self) -> ForceRange {
-        match self {
-            ForceModel::Nano17 => ForceRange::NANO17,
-        }
-    }
-
-    /// Name for messages and manifests.
-    pub fn name(self) -> &'static str {
-        match self {
-            ForceModel::Nano17 => "ATI Nano17",
-        }
-    }
-}
-
-/// The camera.
-#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct CameraConfig {
-    /// Which driver talks to it.
-    pub driver: CameraDriver,
-    /// Frame width in pixels.
-    pub width: u32,
-    /// Frame height in pixels.
-    pub height: u32,
-    /// Frame rate.
-    pub fps: Frequency,
-    /// Folder of an `image_folder` camera.
-    #[serde(default)]
-    pub path: Option<String>,
-    /// Loop an `image_folder` camera's frames.
-    #[serde(default)]
-    pub repeat: Option<bool>,
-}
-
-/// Camera drivers available in this build.
-#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-pub enum CameraDriver {
-    /// Renders the simulated elastomer's markers.
-    Sim,
-    /// Replays the PNG frames of `path` (a recorded sequence) at `fps`.
-    ImageFolder,
-    /// A V4L2 (USB) camera at `path` (`/dev/video0`); needs the `v4l` feature.
-    V4l2,
-}
-
-/// What applies disturbances to a grasped object.
-#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct DisturberConfig {
-    /// Which driver applies it.
-    pub driver: DisturberDriver,
-}
-
-/// Disturbance drivers available in this build.
-#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-pub enum DisturberDriver {
-    /// Adds the load to the simulated plant.
-    Sim,
 }
 
 /// Geometry of the simulated bench.

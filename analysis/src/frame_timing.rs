@@ -112,7 +112,7 @@ mod tests {
             t_ns: t_ms * 1_000_000,
             seq,
             force_samples: Some(3),
-            truth_t_ns: Some(t_ms * 1_000_000 - 500_000),
+            truth_t_ns: Some(t_ms * 1_000_000 + 500_000),
         }
     }
 
@@ -134,7 +134,7 @@ mod tests {
         assert_eq!(t.intervals_ms, vec![40.0, 80.0, 0.0]);
         assert_eq!(t.matched, 5);
         assert_eq!(t.median_samples, Some(3.0));
-        assert!(t.errors_ms.iter().all(|e| (e - 0.5).abs() < 1e-9));
+        assert!(t.errors_ms.iter().all(|e| (e + 0.5).abs() < 1e-9));
     }
 
     #[test]

@@ -37,19 +37,6 @@ pub struct CameraTiming {
     pub errors_ms: Vec<f64>,
 }
 
-fn median(v: &mut [f64]) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    })
-}
-
 /// Frames closer together than this belong to one stream (a record block); farther apart,
 /// they are separate captures (a frame per step) whose counter gaps are not drops.
 const STREAM_GAP_NS: u64 = 1_000_000_000;
@@ -95,7 +82,7 @@ pub fn camera_timing(frames: &[FrameTime]) -> CameraTiming {
         duplicated,
         matched: matched.len(),
         interpolated: matched.iter().filter(|&&n| n == 0).count(),
-        median_samples: median(&mut samples),
+        median_samples: crate::tracking::median(&mut samples),
         errors_ms: frames
             .iter()
             .filter_map(|f| f.truth_t_ns.map(|t| (f.t_ns as f64 - t as f64) * 1e-6))

@@ -53,8 +53,8 @@ fn timing_lines(data: &RunData) -> String {
     let mut text = String::new();
     for (role, t) in &data.manifest.timing {
         text.push_str(&format!(
-            "- {role}: {}; latency subtracted {} ms; clock drift {}; {} sample(s) stamped on \
-             arrival before the model had seen enough.\n",
+            "\nThe {role}'s times: {}; latency subtracted {} ms; clock drift {}; the first {} \
+             stamped on arrival, before the model had seen enough.\n",
             t.method,
             f(t.latency_s * 1e3, 2),
             t.drift_ppm
@@ -116,7 +116,6 @@ pub(super) fn section(data: &RunData) -> Option<(String, String, Value, Option<C
     }
     let timing = timing_lines(data);
     if !timing.is_empty() {
-        text.push_str("\nTimebase per device:\n\n");
         text.push_str(&timing);
         text.push_str(
             "\nA constant latency is invisible in arrival times (it looks like a clock \
@@ -147,7 +146,7 @@ pub(super) fn section(data: &RunData) -> Option<(String, String, Value, Option<C
     }
     if !early.is_empty() {
         text.push_str(&format!(
-            "The first {} frames, stamped on arrival before the clock model had seen enough: \
+            "\nThe first {} frames, stamped on arrival before the clock model had seen enough: \
              median |error| {} ms, worst {} ms.\n",
             early.len(),
             f(quantile(early, 0.5), 3),

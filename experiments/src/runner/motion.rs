@@ -259,9 +259,12 @@ impl Exec<'_> {
         let m = self.monitor.as_ref()?;
         let window = super::frame_force::window_ns(frame.t_ns, exposure_s, fps);
         let deadline = self.clock.now_ns() + FRAME_FORCE_WAIT_NS;
-        // One read now; after it, the scheduled reads (asking again and again would spin
-        // without letting the clock move on).
-        m.read_soon();
+        // One read now, if the samples do not reach the exposure's end yet; after it, the
+        // scheduled reads (asking again and again would spin without letting the clock
+        // move on).
+        if m.history_until_ns().is_none_or(|t| t < window.1) {
+            m.read_soon();
+        }
         while m.history_until_ns().is_none_or(|t| t < window.1) && self.clock.now_ns() < deadline {
             tokio::select! {
                 _ = m.reading() => {}

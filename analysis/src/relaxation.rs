@@ -319,6 +319,34 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
     })
 }
 
+/// Refits the time constants `start_taus_s` with one more, `held_tau_s`, held fixed (variable
+/// projection over the free ones, started where they are): the profile of a model with a
+/// relaxation slower than the record shows, at that time constant. Returns the free time
+/// constants found, increasing, and the residual sum of squares. Holding the extra term
+/// while the others move is what lets a slower term and a faster one share the record's
+/// slow decay between them (a 60 s and a 600 s term over 300 s look like one of ~120 s).
+pub fn refit_with_held(
+    t: &[f64],
+    y: &[f64],
+    start_taus_s: &[f64],
+    held_tau_s: f64,
+) -> Option<(Vec<f64>, f64)> {
+    if start_taus_s.is_empty() || t.len() < 2 * start_taus_s.len() + 5 {
+        return None;
+    }
+    let residual = |theta: &[f64]| -> Option<DVector<f64>> {
+        let mut taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
+        taus.push(held_tau_s);
+        linear_part(t, y, &taus).map(|(_, r)| r)
+    };
+    let theta0: Vec<f64> = start_taus_s.iter().map(|v| v.ln()).collect();
+    let (theta, _) = levenberg_marquardt(theta0, 100, residual)?;
+    let rss = residual(&theta)?.norm_squared();
+    let mut taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
+    taus.sort_by(|a, b| a.total_cmp(b));
+    (rss.is_finite() && taus.iter().all(|v| v.is_finite() && *v > 0.0)).then_some((taus, rss))
+}
+
 /// Aitken's Δ² extrapolation of a single exponential from three equally spaced samples:
 /// F∞ = (F₁F₃ − F₂²)/(F₁ + F₃ − 2F₂). Exact for one exponential; `None` when the
 /// denominator vanishes (no curvature: no relaxation, or noise only).

@@ -108,6 +108,10 @@ pub struct GelMemory {
     /// The largest |F∞| so far: near zero force a relative tolerance is measured against a
     /// tenth of it.
     peak: f64,
+    /// The slowest relaxation any step's own record has shown, s: a time constant its fit
+    /// found inside the record, or the record's length when a still slower term was under
+    /// way (the drift test). A later step's own fit is trusted only over 2.5× it.
+    slowest_seen_s: f64,
     announced: bool,
 }
 
@@ -125,9 +129,14 @@ impl GelMemory {
         0.1 * self.peak
     }
 
-    /// F∞ of `record` (t from the settle's start, the channel) with what is learned.
+    /// F∞ of `record` (t from the settle's start, the channel) with what is learned; a
+    /// step's own fit must span 2.5× the slowest relaxation the run has shown.
     pub fn estimate(&self, t_s: &[f64], y: &[f64], window_s: f64) -> Option<Equilibrium> {
-        equilibrium::estimate_with(t_s, y, window_s, self.learned.as_ref())
+        let mut e = equilibrium::estimate_with(t_s, y, window_s, self.learned.as_ref())?;
+        e.needs_record_s = e
+            .needs_record_s
+            .max(equilibrium::SPAN_OVER_TAU * self.slowest_seen_s);
+        Some(e)
     }
 
     /// A settle ended with estimate `e` of `record`: its scale counts towards the run's
@@ -138,6 +147,16 @@ impl GelMemory {
     /// cannot have.
     pub fn settled(&mut self, e: &Equilibrium, record: (Vec<f64>, Vec<f64>)) {
         self.peak = self.peak.max(e.f_inf.abs());
+        if !e.used_learned {
+            let shown = e
+                .taus_s
+                .iter()
+                .copied()
+                .filter(|tau| *tau <= e.record_s)
+                .fold(0.0, f64::max);
+            let drift = if e.drifting { e.record_s } else { 0.0 };
+            self.slowest_seen_s = self.slowest_seen_s.max(shown).max(drift);
+        }
         if !e.pins_time_constants() {
             return;
         }
@@ -210,6 +229,46 @@ pub fn adaptive_stop(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// 20 Hz samples of 5 + Σ aᵢ e^{−t/τᵢ}, with a fixed ±1 mN ripple as noise.
+    fn relaxing(t_end: f64, taus: &[f64], amps: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let t: Vec<f64> = (0..(t_end * 20.0) as usize)
+            .map(|i| i as f64 / 20.0)
+            .collect();
+        let y = t
+            .iter()
+            .enumerate()
+            .map(|(i, ti)| {
+                5.0 + taus
+                    .iter()
+                    .zip(amps)
+                    .map(|(tau, a)| a * (-ti / tau).exp())
+                    .sum::<f64>()
+                    + if i % 2 == 0 { 0.001 } else { -0.001 }
+            })
+            .collect();
+        (t, y)
+    }
+
+    #[test]
+    fn a_short_record_cannot_claim_once_the_run_has_shown_a_slower_relaxation() {
+        // A 40 s record relaxing with 1.5 and 10 s terms only: alone, its own fit is
+        // followed long enough (2.5 × 10 s) and F∞ is known.
+        let (t, y) = relaxing(40.0, &[1.5, 10.0], &[0.5, 0.3]);
+        let fresh = GelMemory::default();
+        let alone = fresh.estimate(&t, &y, 10.0).expect("fits");
+        assert!(alone.known_within(0.01, 0.1), "{alone:?}");
+        // After a step whose record showed a 100 s relaxation that a 150 s record could not
+        // pin, the same record is no longer long enough to trust its own time constants.
+        let mut memory = GelMemory::default();
+        let (ts, ys) = relaxing(150.0, &[1.5, 10.0, 100.0], &[0.5, 0.3, 0.4]);
+        let slow = memory.estimate(&ts, &ys, 10.0).expect("fits");
+        assert!(!slow.pins_time_constants(), "{slow:?}");
+        memory.settled(&slow, (ts, ys));
+        let after = memory.estimate(&t, &y, 10.0).expect("fits");
+        assert!(after.needs_record_s >= 2.5 * 90.0, "{after:?}");
+        assert!(!after.known_within(0.01, 0.1), "{after:?}");
+    }
 
     #[test]
     fn the_drift_bound_of_a_line_is_its_slope_and_noise_raises_it() {

@@ -139,11 +139,15 @@ fn coverage(text: &str, rig: &Path, tmp: &Path) {
         "| 600 s term, adaptive 1 %, 20–300 s | mean settle | covered by 2σ | claimed within 1 % | of those, off by > 1 % | worst claimed |"
     );
     println!("|---|---|---|---|---|---|");
+    let worst = if claimed == 0 {
+        "—".to_string()
+    } else {
+        format!("{worst_claim:.2} %")
+    };
     println!(
-        "| seeds 1–3, {steps} steps | {:.1} s | {covered} / {steps} ({:.0} %) | {claimed} | {claimed_bad} | {:.2} % |",
+        "| seeds 1–3, {steps} steps | {:.1} s | {covered} / {steps} ({:.0} %) | {claimed} | {claimed_bad} | {worst} |",
         settle.iter().sum::<f64>() / settle.len().max(1) as f64,
         100.0 * covered as f64 / steps.max(1) as f64,
-        worst_claim
     );
 }
 

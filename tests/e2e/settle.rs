@@ -107,11 +107,34 @@ fn a_relaxation_slower_than_the_settle_is_waited_for_not_claimed_at_first() {
     let (o, _) = run_virtual(&loaded, tmp.path(), 1, None);
     assert_eq!(o.status, Status::Completed, "{:?}", o.message);
     let rows = steps_against_truth(&o.dir);
+    let steps = csv_rows(&o.dir.join("steps.csv"));
     // The first steps cannot pin F∞: they wait out their max and say so.
     for (k, (.., settle, _, verdict)) in rows.iter().take(2).enumerate() {
         assert_eq!(verdict, "timeout", "step {}", k + 1);
         assert_eq!(*settle, 300.0);
     }
+    // No step claims 1 % it does not have, and the reported uncertainty covers the error:
+    // BENCHMARKS.md measures 54 of 57 over three seeds; one seed's 19 steps, at least 17.
+    let (mut covered, mut in_contact) = (0, 0);
+    for (k, ((err, sd, _, truth, verdict), row)) in rows.iter().zip(&steps).enumerate() {
+        if row["position"].parse::<f64>().unwrap() <= 0.0 {
+            continue;
+        }
+        in_contact += 1;
+        if *err <= 2.0 * sd {
+            covered += 1;
+        }
+        assert!(
+            verdict != "converged" || *err <= 0.01 * truth.abs(),
+            "step {}: claimed 1 %, off by {:.2} %",
+            k + 1,
+            100.0 * err / truth.abs()
+        );
+    }
+    assert!(
+        covered + 2 >= in_contact,
+        "2σ covers the error on {covered} of {in_contact} steps"
+    );
     let warnings = crate::support::manifest(&o.dir).warnings;
     assert!(
         warnings

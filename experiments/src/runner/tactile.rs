@@ -31,8 +31,8 @@ pub(super) struct LiveTactile {
     /// The GelSight's force, when the protocol records it: the calibrated reader and the
     /// matching of its markers to this block's reference (at the first tracked frame).
     gelsight: Option<(crate::sensor::reader::Reader, Option<Vec<Option<usize>>>)>,
-    /// The gel's load history for the GelSight's Fz (sensors that know its relaxation).
-    gelsight_memory: Option<analysis::force_sensor::memory::Memory>,
+    /// The gel's load history for the GelSight's Fz, made at the first reading.
+    gelsight_history: Option<crate::sensor::history::LoadHistory>,
     /// Why the GelSight's force cannot be read in this block, until handed out.
     gelsight_error: Option<String>,
     /// The live view watches: keep the last frame's arrows and contact outline for it.
@@ -44,7 +44,7 @@ impl LiveTactile {
     pub(super) fn new(mm_per_px: Option<f64>, sensor: Option<&crate::sensor::SensorFile>) -> Self {
         Self {
             gelsight: sensor.map(|s| (crate::sensor::reader::Reader::new(s), None)),
-            gelsight_memory: None,
+            gelsight_history: None,
             gelsight_error: None,
             pipeline: None,
             monitor: TactileMonitor::new(TactileParams::default()),
@@ -77,11 +77,12 @@ impl LiveTactile {
         self.gelsight_error.take()
     }
 
-    /// The GelSight's wrench of this frame with the protocol's sensor file, if any.
+    /// The GelSight's wrench of this frame with the protocol's sensor file, if any; `seen`
+    /// the image's contact region (centroid, equivalent radius, px).
     fn gelsight_wrench(
         &mut self,
         field: &MarkerField,
-        contact: Option<([f64; 2], f64)>,
+        seen: Option<([f64; 2], f64)>,
         t_ns: u64,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
         let (reader, map) = self.gelsight.as_mut()?;
@@ -97,16 +98,14 @@ impl LiveTactile {
                 }
             }
         }
-        let reading = reader.read(field, contact, map.as_ref()?);
+        let history = self
+            .gelsight_history
+            .get_or_insert_with(|| crate::sensor::history::LoadHistory::new(reader.memory()));
+        let region = history.region(field, seen);
+        let reading = reader.read(field, region, map.as_ref()?);
         let (mut v, sd) = reader.model.predict(&reading.features);
-        if self.gelsight_memory.is_none() {
-            self.gelsight_memory = reader.memory();
-        }
-        if let (Some(m), Some(fz)) = (self.gelsight_memory.as_mut(), v.get_mut(2)) {
-            *fz = match contact {
-                Some(_) => m.apply(t_ns, *fz),
-                None => m.release(t_ns, *fz),
-            };
+        if let Some(fz) = v.get_mut(2) {
+            *fz = history.fz(t_ns, *fz, region);
         }
         Some((v, sd))
     }

@@ -5,6 +5,7 @@
 
 pub mod calibrate;
 pub mod file;
+pub mod history;
 pub mod maps;
 pub mod reader;
 pub mod scale;

@@ -63,20 +63,20 @@ pub(crate) fn wrench_of_frames(
             source,
         })?;
     // The memory needs every frame's time; a recording without them reads the field alone.
-    let mut memory = reader
-        .memory()
-        .filter(|_| frames.iter().skip(1).all(|f| f.t_ns > 0));
+    let mut history = super::history::LoadHistory::new(
+        reader
+            .memory()
+            .filter(|_| frames.iter().skip(1).all(|f| f.t_ns > 0)),
+    );
     Ok(frames
         .iter()
         .map(|f| {
-            let reading = reader.read(&f.field, f.contact, &map);
+            let region = history.region(&f.field, f.contact);
+            let reading = reader.read(&f.field, region, &map);
             let share = reading.measured_share;
             let (mut v, sd) = reader.model.predict(&reading.features);
-            if let (Some(m), Some(fz)) = (memory.as_mut(), v.get_mut(2)) {
-                *fz = match f.contact {
-                    Some(_) => m.apply(f.t_ns, *fz),
-                    None => m.release(f.t_ns, *fz),
-                };
+            if let Some(fz) = v.get_mut(2) {
+                *fz = history.fz(f.t_ns, *fz, region);
             }
             let at = |x: &[f64], i: usize| x.get(i).copied().unwrap_or(f64::NAN);
             WrenchRow {

@@ -1,0 +1,118 @@
+//! The gel's load history as a reading follows a recording frame by frame: what the
+//! hereditary Fz ([`analysis::force_sensor::memory`]) takes in, and what it must not. Shared
+//! by the live tactile path and `gelrig track --sensor`, so both read a recording alike.
+//!
+//! Two things stay out of the history:
+//! - **a contact the image missed for a frame.** The contact finder can miss a frame in a
+//!   loaded grasp (a swing blurs the colour change; once in the shipped `lifting-can`,
+//!   seed 2, with the gel pressed at 2.9 px rms). Read without a region, that frame would
+//!   count as the gel letting go and restart the history from rest. While the field's rms is
+//!   at least half what it was at the last region, the last region stands in.
+//! - **a negative elastic force.** A gel pressed by an object carries no pulling normal
+//!   force: a negative elastic reading is the model outside its calibration (a twist's
+//!   field, on a sensor calibrated by pressing and shearing). In the history a negative force
+//!   counts as the contact receding (Ting 1966) and resets it, so the twist's return would
+//!   stay in it as a fresh load: `lifting-can`'s lowering read 36 % above the Nano17 instead
+//!   of the hold's 13 % (BENCHMARKS.md, "What the load history must not take in").
+
+use analysis::field::MarkerField;
+use analysis::force_sensor::memory::Memory;
+
+/// A contact region: centroid and equivalent radius, px.
+pub type Region = ([f64; 2], f64);
+
+/// The load history of one recording (or one record block).
+#[derive(Debug, Clone)]
+pub struct LoadHistory {
+    memory: Option<Memory>,
+    /// The last region the image showed, and the field's rms then, px.
+    last_region: Option<(Region, f64)>,
+}
+
+impl LoadHistory {
+    /// A gel with no history; `memory` is the sensor's ([`super::reader::Reader::memory`]),
+    /// `None` for a sensor that does not know its gel's relaxation.
+    pub fn new(memory: Option<Memory>) -> Self {
+        Self {
+            memory,
+            last_region: None,
+        }
+    }
+
+    /// The region a frame with `field` is read with: the image's (`seen`), or the last one
+    /// while the gel still carries the load.
+    pub fn region(&mut self, field: &MarkerField, seen: Option<Region>) -> Option<Region> {
+        bridge(&mut self.last_region, seen, rms_px(field))
+    }
+
+    /// The force at `t_ns` of a frame whose field reads the elastic force `f_e`, in contact
+    /// with `region` (from [`Self::region`]); `f_e` itself for a sensor without memory.
+    pub fn fz(&mut self, t_ns: u64, f_e: f64, region: Option<Region>) -> f64 {
+        let Some(m) = self.memory.as_mut() else {
+            return f_e;
+        };
+        let f_e = f_e.max(0.0);
+        match region {
+            Some(_) => m.apply(t_ns, f_e),
+            None => m.release(t_ns, f_e),
+        }
+    }
+}
+
+/// Rms of the field over its measured markers, px.
+fn rms_px(field: &MarkerField) -> f64 {
+    let (sum, n) = field
+        .measured_ids()
+        .map(|i| field.displacement_px[i])
+        .fold((0.0, 0usize), |(s, n), d| {
+            (s + d[0] * d[0] + d[1] * d[1], n + 1)
+        });
+    if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
+}
+
+/// The image's region, or the last one while the field's rms (`total_px`) is at least half
+/// what it was then.
+fn bridge(last: &mut Option<(Region, f64)>, seen: Option<Region>, total_px: f64) -> Option<Region> {
+    match seen {
+        Some(r) => {
+            *last = Some((r, total_px));
+            Some(r)
+        }
+        None => match *last {
+            Some((r, then_px)) if total_px >= 0.5 * then_px => Some(r),
+            _ => {
+                *last = None;
+                None
+            }
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bridge;
+
+    #[test]
+    fn a_frame_without_a_region_in_a_loaded_grasp_keeps_the_last_one_and_an_unloaded_gel_lets_go() {
+        let mut last = None;
+        assert_eq!(bridge(&mut last, None, 0.01), None, "no contact yet");
+        let r = ([320.0, 240.0], 40.0);
+        assert_eq!(bridge(&mut last, Some(r), 2.5), Some(r));
+        // The finder misses a frame; the field still carries the load.
+        assert_eq!(bridge(&mut last, None, 2.9), Some(r));
+        assert_eq!(
+            bridge(&mut last, None, 1.3),
+            Some(r),
+            "half the load: still held"
+        );
+        // The gel has let go: the field fell below half of what it was.
+        assert_eq!(bridge(&mut last, None, 1.0), None);
+        assert_eq!(
+            bridge(&mut last, None, 2.0),
+            None,
+            "nothing left to bridge with"
+        );
+        let r2 = ([300.0, 250.0], 35.0);
+        assert_eq!(bridge(&mut last, Some(r2), 2.0), Some(r2));
+    }
+}

@@ -64,7 +64,7 @@ pub const SPAN_OVER_TAU: f64 = 2.5;
 /// (slowest 60 s) the drop stays at 0.5–2.5 for records of 60–300 s; with a 600 s term
 /// beside it, 29 at 150 s and 363 at 300 s (`cargo run --release -p analysis --example
 /// equilibrium_drift`).
-const DRIFT_CHI2: f64 = 9.0;
+pub const DRIFT_CHI2: f64 = 9.0;
 /// Time constants of a relaxation not yet seen, in record lengths.
 const EXTRA: [f64; 3] = [1.0, 2.0, 4.0];
 /// Multiples of the fitted slowest time constant tried by the profile.
@@ -126,7 +126,7 @@ impl Equilibrium {
 }
 
 /// Averages (t, y) into at most `max` bins of equal time.
-fn binned(t: &[f64], y: &[f64], max: usize) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn binned(t: &[f64], y: &[f64], max: usize) -> (Vec<f64>, Vec<f64>) {
     if t.len() <= max || t.len() < 2 {
         return (t.to_vec(), y.to_vec());
     }
@@ -147,7 +147,7 @@ fn binned(t: &[f64], y: &[f64], max: usize) -> (Vec<f64>, Vec<f64>) {
 
 /// The linear parameters (F∞, then the amplitudes) of the model with time constants `taus`
 /// and their standard errors (the τ held fixed: s² (AᵀA)⁻¹).
-fn fit_with_errors(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
+pub(crate) fn fit_with_errors(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
     let n = t.len();
     let p = taus.len() + 1;
     let (x, rss) = linear_fit(t, y, taus)?;
@@ -165,7 +165,7 @@ fn fit_with_errors(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(Vec<f64>, Vec<
 }
 
 /// Least squares of y on [1, e^{−t/τ₁}, …]: the coefficients and the residual sum.
-fn linear_fit(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(Vec<f64>, f64)> {
+pub(crate) fn linear_fit(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(Vec<f64>, f64)> {
     let n = t.len();
     let p = taus.len() + 1;
     if n <= p {

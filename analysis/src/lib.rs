@@ -22,6 +22,7 @@
 //! - [`tactile`]: a grasp's slip state frame by frame (stick, incipient, slip).
 //! - [`frame_timing`]: a camera's frame intervals, drops and duplicates, exposure matching.
 
+pub mod carried_relaxation;
 pub mod equilibrium;
 pub mod field;
 pub mod field_force;

@@ -6,10 +6,12 @@
 //!   `window_s` plus twice its standard error — is below `below` (and `min_s` has passed).
 //! - The **adaptive rule** ([`crate::equilibrium`]): settled once F∞ is known within the
 //!   tolerance; a fit every max(2 s, a tenth of the wait). [`GelMemory`] carries what a run
-//!   learns of the gel's time constants from one step to the next.
+//!   learns of the gel's time constants from one step to the next, and the load history a
+//!   later step's slowest relaxation is carried from ([`crate::carried_relaxation`]).
 
 use std::collections::VecDeque;
 
+use crate::carried_relaxation::{self, Carry};
 use crate::equilibrium::{self, Equilibrium, Learned};
 
 /// Upper bound of |slope| of `y` against `t` (per unit of t): the least-squares slope plus
@@ -95,7 +97,8 @@ pub struct AdaptiveRule {
 /// The next fit after one at `elapsed_s`: a tenth of the wait later, at least 2 s. Not
 /// more often: every look is a chance to stop on a momentarily narrow band (optional
 /// stopping) — fitting every max(1 s, a twentieth) shortened `box-normal-flat`'s mean settle
-/// from 46.0 to 45.2 s and worsened its worst step from 1.38 % to 1.86 % (BENCHMARKS.md).
+/// from 46.0 to 45.2 s and worsened its worst step from 1.38 % to 1.86 % (BENCHMARKS.md;
+/// measured before the load history was carried).
 pub fn next_check_s(elapsed_s: f64) -> f64 {
     elapsed_s + (elapsed_s / 10.0).max(2.0)
 }
@@ -112,6 +115,11 @@ pub struct GelMemory {
     /// found inside the record, or the record's length when a still slower term was under
     /// way (the drift test). A later step's own fit is trusted only over 2.5× it.
     slowest_seen_s: f64,
+    /// Each settled step's start (s on the run's clock) and F∞, where the start is known:
+    /// the load history a later step's slowest relaxation is carried from.
+    steps: Vec<(f64, f64)>,
+    /// The slowest learned term's weight per unit change of F∞, and its uncertainty.
+    slow_weight: Option<(f64, f64)>,
     announced: bool,
 }
 
@@ -132,11 +140,74 @@ impl GelMemory {
     /// F∞ of `record` (t from the settle's start, the channel) with what is learned; a
     /// step's own fit must span 2.5× the slowest relaxation the run has shown.
     pub fn estimate(&self, t_s: &[f64], y: &[f64], window_s: f64) -> Option<Equilibrium> {
+        self.estimate_at(None, t_s, y, window_s)
+    }
+
+    /// As [`Self::estimate`], for a settle that started at `start_s` on the run's clock:
+    /// with the time constants learned and the load history known, the slowest term's
+    /// amplitude is carried from the steps before ([`crate::carried_relaxation`]) where
+    /// that history explains the record.
+    pub fn estimate_at(
+        &self,
+        start_s: Option<f64>,
+        t_s: &[f64],
+        y: &[f64],
+        window_s: f64,
+    ) -> Option<Equilibrium> {
         let mut e = equilibrium::estimate_with(t_s, y, window_s, self.learned.as_ref())?;
         e.needs_record_s = e
             .needs_record_s
             .max(equilibrium::SPAN_OVER_TAU * self.slowest_seen_s);
+        if let (Some(start), Some(l), Some((weight, weight_sd))) =
+            (start_s, self.learned.as_ref(), self.slow_weight)
+        {
+            let (history, f_prev) = self.history_at(start, l);
+            let carry = Carry {
+                weight,
+                weight_sd,
+                history,
+                f_prev,
+            };
+            if let Some(c) = carried_relaxation::estimate_carried(t_s, y, l, &carry, &e) {
+                return Some(c);
+            }
+        }
         Some(e)
+    }
+
+    /// H (the earlier changes of F∞ decayed by the slowest learned term to `start_s`) and
+    /// the last F∞, from the steps whose start is known.
+    fn history_at(&self, start_s: f64, learned: &Learned) -> (f64, f64) {
+        let tau = learned.taus_s.last().copied().unwrap_or(f64::INFINITY);
+        let mut prev = 0.0;
+        let mut h = 0.0;
+        for (t_j, f_j) in self.steps.iter().filter(|(t, _)| *t <= start_s) {
+            h += (f_j - prev) * (-(start_s - t_j) / tau).exp();
+            prev = *f_j;
+        }
+        (h, prev)
+    }
+
+    /// As [`Self::settled`], for a settle that started at `start_s` on the run's clock: the
+    /// step joins the load history, and the step that teaches the time constants also
+    /// teaches the slowest term's weight.
+    pub fn settled_at(
+        &mut self,
+        start_s: Option<f64>,
+        e: &Equilibrium,
+        record: (Vec<f64>, Vec<f64>),
+    ) {
+        let had = self.learned.is_some();
+        let (t, y) = (record.0.clone(), record.1.clone());
+        self.settled(e, record);
+        let Some(start) = start_s else {
+            return;
+        };
+        if let (false, Some(l)) = (had, self.learned.as_ref()) {
+            let (h, f_prev) = self.history_at(start, l);
+            self.slow_weight = carried_relaxation::slow_weight(&t, &y, l, h + e.f_inf - f_prev);
+        }
+        self.steps.push((start, e.f_inf));
     }
 
     /// A settle ended with estimate `e` of `record`: its scale counts towards the run's
@@ -181,8 +252,9 @@ impl GelMemory {
         self.announced = true;
         Some(format!(
             "adaptive settling: later steps fit F∞ with the gel's time constants learned so far \
-             ({} s, ±{:.0} %); they assume nothing relaxes slower than {:.0} s — a slower \
-             relaxation needs a `max` of at least 2.5× it to be seen",
+             ({} s, ±{:.0} %), the slowest term's amplitude carried from the load history where \
+             it explains their record; they assume nothing relaxes slower than {:.0} s — a \
+             slower relaxation needs a `max` of at least 2.5× it to be seen",
             l.taus_s
                 .iter()
                 .map(|t| format!("{t:.1}"))
@@ -196,8 +268,10 @@ impl GelMemory {
 
 /// When the adaptive rule would have ended the settle of `record` (`t_s` from its start),
 /// fitting on the runner's schedule: the time, the estimate then, and whether it was known
-/// (false: the max, or the record's end, came first). `memory` learns from it as a run would.
+/// (false: the max, or the record's end, came first). `memory` learns from it as a run
+/// would; `start_s`, the settle's start on the run's clock, lets it carry the load history.
 pub fn adaptive_stop(
+    start_s: Option<f64>,
     t_s: &[f64],
     y: &[f64],
     rule: &AdaptiveRule,
@@ -208,10 +282,10 @@ pub fn adaptive_stop(
     let mut last = None;
     loop {
         let k = t_s.partition_point(|t| *t <= at);
-        if let Some(e) = memory.estimate(&t_s[..k], &y[..k], rule.window_s) {
+        if let Some(e) = memory.estimate_at(start_s, &t_s[..k], &y[..k], rule.window_s) {
             let known = e.known_within(rule.tolerance, memory.floor());
             if known || at >= end {
-                memory.settled(&e, (t_s[..k].to_vec(), y[..k].to_vec()));
+                memory.settled_at(start_s, &e, (t_s[..k].to_vec(), y[..k].to_vec()));
                 return Some((at, e, known));
             }
             last = Some(e);
@@ -222,7 +296,7 @@ pub fn adaptive_stop(
         at = next_check_s(at).min(end);
     }
     let e = last?;
-    memory.settled(&e, (t_s.to_vec(), y.to_vec()));
+    memory.settled_at(start_s, &e, (t_s.to_vec(), y.to_vec()));
     Some((end, e, false))
 }
 
@@ -232,22 +306,8 @@ mod tests {
 
     /// 20 Hz samples of 5 + Σ aᵢ e^{−t/τᵢ}, with a fixed ±1 mN ripple as noise.
     fn relaxing(t_end: f64, taus: &[f64], amps: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        let t: Vec<f64> = (0..(t_end * 20.0) as usize)
-            .map(|i| i as f64 / 20.0)
-            .collect();
-        let y = t
-            .iter()
-            .enumerate()
-            .map(|(i, ti)| {
-                5.0 + taus
-                    .iter()
-                    .zip(amps)
-                    .map(|(tau, a)| a * (-ti / tau).exp())
-                    .sum::<f64>()
-                    + if i % 2 == 0 { 0.001 } else { -0.001 }
-            })
-            .collect();
-        (t, y)
+        let gel: Vec<(f64, f64)> = amps.iter().zip(taus).map(|(a, t)| (a / 5.0, *t)).collect();
+        crate::carried_relaxation::staircase(&[(0.0, 5.0)], &gel, 0.0, t_end)
     }
 
     #[test]

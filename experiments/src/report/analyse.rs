@@ -160,6 +160,8 @@ pub struct StepRelax {
     pub f: Vec<f64>,
     /// The simulator's equilibrium value, if known.
     pub truth: Option<f64>,
+    /// The move's end, s on the run's clock.
+    pub start_s: f64,
 }
 
 /// Everything the report shows.
@@ -287,7 +289,9 @@ fn blocks(data: &RunData) -> Vec<Block> {
 }
 
 /// Samples of one step on the block's channel, t from the end of the move.
-fn step_record(data: &RunData, b: &Block, s: &BlockStep) -> (Vec<f64>, Vec<f64>) {
+/// A step's relaxation record: t from the end of the move, s; the channel; the move's end,
+/// s on the run's clock.
+fn step_record(data: &RunData, b: &Block, s: &BlockStep) -> (Vec<f64>, Vec<f64>, f64) {
     let row = &data.steps[s.row];
     let samples: Vec<(f64, f64)> = data
         .force
@@ -309,7 +313,7 @@ fn step_record(data: &RunData, b: &Block, s: &BlockStep) -> (Vec<f64>, Vec<f64>)
         })
         .collect();
     if samples.len() < 10 {
-        return (Vec::new(), Vec::new());
+        return (Vec::new(), Vec::new(), 0.0);
     }
     // The move ends at the peak of the ramp (the maximum of a loading step, the minimum
     // of an unloading one) within the first fifth of the step; relaxation is fitted from
@@ -326,7 +330,8 @@ fn step_record(data: &RunData, b: &Block, s: &BlockStep) -> (Vec<f64>, Vec<f64>)
     // The sample after the peak: the peak sample itself may fall just before the move ends.
     let k0 = (k0 + 1).min(samples.len() - 1);
     let t0 = samples[k0].0;
-    samples[k0..].iter().map(|(t, f)| (t - t0, *f)).unzip()
+    let (t, f) = samples[k0..].iter().map(|(t, f)| (t - t0, *f)).unzip();
+    (t, f, row.t_start_ns as f64 * 1e-9 + t0)
 }
 
 fn sim_truth(data: &RunData, b: &Block, step: u32) -> Option<f64> {
@@ -679,7 +684,7 @@ pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report
     for b in &mut blocks {
         // Relaxation per step.
         for s in &b.steps {
-            let (t, f) = step_record(data, b, s);
+            let (t, f, start_s) = step_record(data, b, s);
             if t.is_empty() {
                 continue;
             }
@@ -691,6 +696,7 @@ pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report
                 truth: sim_truth(data, b, s.step),
                 t_s: t,
                 f,
+                start_s,
             });
         }
         let loading: Vec<&BlockStep> = b.steps.iter().filter(|s| !s.unloading).collect();
@@ -821,6 +827,7 @@ pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report
             terms: r.fit.terms,
             amplitude: r.fit.amplitudes.iter().sum(),
             truth: r.truth,
+            start_s: r.start_s,
         })
         .collect();
     let settle = super::settle_study::settle_curve(&views);

@@ -21,6 +21,8 @@ pub(super) struct StepRelax<'a> {
     pub amplitude: f64,
     /// The simulator's equilibrium value, if known.
     pub truth: Option<f64>,
+    /// The move's end, s on the run's clock (the adaptive rule carries the load history).
+    pub start_s: f64,
 }
 
 /// Settle error against settle time, over the run's relaxing steps.
@@ -94,7 +96,7 @@ fn replay(steps: &[&StepRelax<'_>], window: f64) -> Vec<RuleOutcome> {
             max_s: end,
             window_s: window,
         };
-        if let Some((at, e, ok)) = adaptive_stop(r.t_s, r.f, &rule, &mut memory) {
+        if let Some((at, e, ok)) = adaptive_stop(Some(r.start_s), r.t_s, r.f, &rule, &mut memory) {
             adaptive.push((at, (e.f_inf - reference(r)).abs(), ok));
         }
     }

@@ -30,6 +30,11 @@ pub(super) struct AdaptiveTrack {
 }
 
 impl AdaptiveTrack {
+    /// The settle's start, s on the run's clock.
+    pub(super) fn start_s(&self) -> f64 {
+        self.start_ns as f64 * 1e-9
+    }
+
     /// The settle's record so far: (s since its start, the channel).
     pub(super) fn record(&self, window: &VecDeque<(u64, Wrench, u32)>) -> (Vec<f64>, Vec<f64>) {
         window
@@ -52,7 +57,7 @@ impl AdaptiveTrack {
         self.next_ns =
             self.start_ns + (analysis::settle_rules::next_check_s(elapsed_s) * 1e9) as u64;
         let (t, f) = self.record(window);
-        let Some(e) = memory.estimate(&t, &f, self.window_s) else {
+        let Some(e) = memory.estimate_at(Some(self.start_s()), &t, &f, self.window_s) else {
             return false;
         };
         let known = e.known_within(self.tolerance, memory.floor());

@@ -314,7 +314,8 @@ impl Exec<'_> {
                 };
                 let verdict = track.verdict.unwrap_or("timeout");
                 if let Some(e) = &track.last {
-                    self.gel.settled(e, track.record(&self.window));
+                    self.gel
+                        .settled_at(Some(track.start_s()), e, track.record(&self.window));
                 }
                 if let Some(msg) = self.gel.newly_learned() {
                     self.progress.note(&msg);

@@ -27,6 +27,10 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::equilibrium::{self, Equilibrium, Learned, MAX_POINTS};
 
+/// The weight's smallest relative uncertainty: it is learned with time constants that are
+/// themselves uncertain.
+const WEIGHT_FLOOR: f64 = 0.05;
+
 /// What the load history says of a later step's slowest relaxation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Carry {
@@ -57,7 +61,7 @@ pub fn slow_weight(
     let (x, se) = equilibrium::fit_with_errors(&t, &y, &learned.taus_s)?;
     let k = learned.taus_s.len();
     let w = x[k] / load_change;
-    let sd = (se[k] / load_change.abs()).max(0.05 * w.abs());
+    let sd = (se[k] / load_change.abs()).max(WEIGHT_FLOOR * w.abs());
     (w.is_finite() && sd.is_finite()).then_some((w, sd))
 }
 

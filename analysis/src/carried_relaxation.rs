@@ -65,25 +65,6 @@ pub fn slow_weight(
     (w.is_finite() && sd.is_finite()).then_some((w, sd))
 }
 
-/// Least squares of `z` on the columns of `a`: the coefficients, their standard errors and
-/// the residual sum.
-fn lsq(a: &DMatrix<f64>, z: &DVector<f64>) -> Option<(DVector<f64>, Vec<f64>, f64)> {
-    let (n, p) = a.shape();
-    if n <= p || !a.iter().chain(z.iter()).all(|v| v.is_finite()) {
-        return None;
-    }
-    let x = a
-        .clone()
-        .try_svd(true, true, f64::EPSILON, 500)?
-        .solve(z, 1e-12)
-        .ok()?;
-    let rss = (a * &x - z).norm_squared();
-    let cov = (a.transpose() * a).try_inverse()?;
-    let s2 = rss / (n - p) as f64;
-    let se: Vec<f64> = (0..p).map(|k| (s2 * cov[(k, k)]).sqrt()).collect();
-    (rss.is_finite() && se.iter().all(|v| v.is_finite())).then_some((x, se, rss))
-}
-
 /// The tied fit for time constants `taus_s` and weight `w`: F∞, its standard error, the
 /// residual sum.
 fn tied(t: &[f64], y: &[f64], taus_s: &[f64], w: f64, carry: &Carry) -> Option<(f64, f64, f64)> {
@@ -102,7 +83,7 @@ fn tied(t: &[f64], y: &[f64], taus_s: &[f64], w: f64, carry: &Carry) -> Option<(
             .zip(y)
             .map(|(ti, yi)| yi - w * (carry.history - carry.f_prev) * (-ti / tau).exp()),
     );
-    let (x, se, rss) = lsq(&a, &z)?;
+    let (x, se, rss) = equilibrium::lsq(&a, &z)?;
     Some((x[0], se[0], rss))
 }
 

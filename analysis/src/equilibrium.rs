@@ -148,20 +148,35 @@ pub(crate) fn binned(t: &[f64], y: &[f64], max: usize) -> (Vec<f64>, Vec<f64>) {
 /// The linear parameters (F∞, then the amplitudes) of the model with time constants `taus`
 /// and their standard errors (the τ held fixed: s² (AᵀA)⁻¹).
 pub(crate) fn fit_with_errors(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
-    let n = t.len();
-    let p = taus.len() + 1;
-    let (x, rss) = linear_fit(t, y, taus)?;
-    let a = DMatrix::from_fn(n, p, |i, j| {
+    let a = DMatrix::from_fn(t.len(), taus.len() + 1, |i, j| {
         if j == 0 {
             1.0
         } else {
             (-t[i] / taus[j - 1]).exp()
         }
     });
+    let (x, se, _) = lsq(&a, &DVector::from_column_slice(y))?;
+    Some((x.iter().copied().collect(), se))
+}
+
+/// Least squares of `z` on the columns of `a` (bounded SVD: nalgebra's plain `svd` may not
+/// return on an ill-conditioned matrix): the coefficients, their standard errors
+/// (s² (AᵀA)⁻¹) and the residual sum.
+pub(crate) fn lsq(a: &DMatrix<f64>, z: &DVector<f64>) -> Option<(DVector<f64>, Vec<f64>, f64)> {
+    let (n, p) = a.shape();
+    if n <= p || !a.iter().chain(z.iter()).all(|v| v.is_finite()) {
+        return None;
+    }
+    let x = a
+        .clone()
+        .try_svd(true, true, f64::EPSILON, 500)?
+        .solve(z, 1e-12)
+        .ok()?;
+    let rss = (a * &x - z).norm_squared();
     let cov = (a.transpose() * a).try_inverse()?;
     let s2 = rss / (n - p) as f64;
     let se: Vec<f64> = (0..p).map(|k| (s2 * cov[(k, k)]).sqrt()).collect();
-    se.iter().all(|v| v.is_finite()).then_some((x, se))
+    (rss.is_finite() && se.iter().all(|v| v.is_finite())).then_some((x, se, rss))
 }
 
 /// Least squares of y on [1, e^{−t/τ₁}, …]: the coefficients and the residual sum.

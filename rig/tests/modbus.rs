@@ -12,7 +12,7 @@ use rig::units::AxisUnit;
 use rig::{RigError, lock};
 
 mod common;
-use common::wait_idle;
+use common::{rest_position, wait_idle};
 
 fn map(address: String, slave: u8) -> ModbusMap {
     // An Oriental AZ-like map (spec devices.md §2d), upper word first.
@@ -409,5 +409,33 @@ axes:
         "not both",
     ] {
         assert!(text.iter().any(|t| t.contains(want)), "{want}: {text:?}");
+    }
+}
+
+/// A status poll is two reads (position, then the status word would be the natural order):
+/// a move that ends between them would read "at rest" with a position from mid-move, and a
+/// runner would take the stage as short of its target (on a loaded host, a late-drive run
+/// once stopped "at rest at 9.79 deg" of a move to 10). With every reply 15 ms late, no poll
+/// that says "at rest" may carry any position but the target.
+#[tokio::test]
+async fn a_move_ending_between_the_reads_of_one_poll_is_not_at_rest_short_of_its_target() {
+    let twin = ModbusTwin::spawn(map(String::new(), 1), (0, 6000), 1.0)
+        .await
+        .expect("twin");
+    let mut a = ModbusAxis::open(map(twin.address(), 1), info(20.0))
+        .await
+        .expect("opens");
+    a.home().await.expect("home");
+    wait_idle(&mut a).await;
+    lock(&twin.faults).reply_delay = Duration::from_millis(15);
+    for k in 0..8 {
+        // 1 mm at 50 mm/s: 20 ms, about the length of one poll.
+        let target = if k % 2 == 0 { 2.0 } else { 1.0 };
+        a.move_to(target, 50.0).await.expect("move");
+        let at = rest_position(&mut a).await;
+        assert!(
+            (at - target).abs() < 1e-9,
+            "move {k}: at rest at {at} mm, the target {target} mm"
+        );
     }
 }

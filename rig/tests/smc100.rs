@@ -10,7 +10,7 @@ use rig::twins::smc100::{Smc100Twin, TwinParams};
 use rig::units::AxisUnit;
 
 mod common;
-use common::wait_idle;
+use common::{rest_position, wait_idle};
 use rig::{RigError, lock};
 
 fn twin() -> Smc100Twin {
@@ -113,4 +113,29 @@ async fn the_controllers_own_limits_and_faults() {
         Smc100Axis::open(s, info(12.0)).await,
         Err(RigError::Timeout { .. })
     ));
+}
+
+/// `TS` and `TP` are two exchanges: a move that ends between them must not be reported at
+/// rest with a position from mid-move (the runner would take the stage as short of its
+/// target). With every reply 15 ms late, no poll that says "at rest" may carry any position
+/// but the target.
+#[tokio::test]
+async fn a_move_ending_between_the_two_queries_of_one_poll_is_not_at_rest_short_of_it() {
+    let t = twin();
+    let mut a = Smc100Axis::open(settings(&t), info(12.0))
+        .await
+        .expect("opens");
+    a.home().await.expect("home");
+    wait_idle(&mut a).await;
+    lock(t.faults()).delay = Duration::from_millis(15);
+    for k in 0..8 {
+        // 0.1 mm at 5 mm/s: 20 ms, about the length of one poll.
+        let target = if k % 2 == 0 { 0.6 } else { 0.5 };
+        a.move_to(target, 5.0).await.expect("move");
+        let at = rest_position(&mut a).await;
+        assert!(
+            (at - target).abs() < 1e-6,
+            "move {k}: at rest at {at} mm, the target {target} mm"
+        );
+    }
 }

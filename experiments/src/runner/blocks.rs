@@ -137,29 +137,57 @@ impl Exec<'_> {
         let what = "stopping at contact".to_string();
         let deadline = self.deadline_for(axis, 0.0, speed, what);
         self.wait(&mut Until::Motion(vec![deadline])).await?;
-        let contact = self.position(axis).await?;
+        let found = self.position(axis).await?;
+        // How far two approaches to the same surface can disagree by themselves: the creep
+        // between two readings (the crossing is seen up to one reading late) and a step of
+        // the stage's resolution each.
+        let jitter = speed
+            * self
+                .monitor
+                .as_ref()
+                .map_or(0.0, |m| m.reading_period_ns() as f64 * 1e-9)
+            + 2.0
+                * self
+                    .rig
+                    .axes
+                    .get(&axis)
+                    .map_or(0.0, |a| a.info().resolution);
+        let mut contact = found;
         // Inside a trial every approach finds its own contact (a grasp's is where the
         // object happens to be): only the bench's origin, outside trials, is checked.
         if self.trial == 0
             && let Some(r) = self.resume.as_mut()
-            && let Some(recorded) = r.check_origin(axis, contact)?
+            && let Some(recorded) = r.check_origin(axis, found)?
         {
+            // Within the approach's own jitter the difference says nothing about the bench:
+            // the recorded origin stays, so the resumed steps go to the stage positions the
+            // run's first segment used. Beyond it (and within the tolerance) the sensor or
+            // stage has moved that much, and the depths are kept from the new contact.
+            let moved = (found - recorded).abs() > jitter + 1e-9;
+            if !moved {
+                contact = recorded;
+            }
             let tolerance = r.origin_tolerance;
             let t = self.now();
             self.rec.journal(
                 t,
                 "contact_rechecked",
-                json!({ "axis": axis, "recorded": recorded, "found": contact, "difference": contact - recorded, "tolerance": tolerance }),
+                json!({ "axis": axis, "recorded": recorded, "found": found, "difference": found - recorded, "jitter": jitter, "origin": contact, "tolerance": tolerance }),
                 true,
             )?;
             self.progress.note(&format!(
-                "resume: contact {} from the recorded origin (tolerance ±{})",
-                fmt_value(((contact - recorded) * 1e6).round() / 1e6),
-                fmt_value(tolerance)
+                "resume: contact {} from the recorded origin (tolerance ±{}); {}",
+                fmt_value(((found - recorded) * 1e6).round() / 1e6),
+                fmt_value(tolerance),
+                if moved {
+                    "beyond the approach's jitter: the new contact is the origin"
+                } else {
+                    "within the approach's jitter: the recorded origin stays"
+                }
             ));
         }
         self.origin.insert(axis, contact);
-        self.targets.insert(axis, contact);
+        self.targets.insert(axis, found);
         let force = self.latest.map(|(_, w)| channel.of(&w)).unwrap_or(0.0);
         if let Some(t) = self.tactile.as_mut() {
             t.gripped();

@@ -168,6 +168,8 @@ pub(crate) struct Monitor {
     wake_watchdog: Arc<Notify>,
     trip_done: Arc<Notify>,
     task: Option<tokio::task::JoinHandle<()>>,
+    /// The longest the plan waits between two readings, ns (the monitor's period).
+    reading_period_ns: u64,
 }
 
 impl Monitor {
@@ -201,6 +203,7 @@ impl Monitor {
         let alarm = Arc::new(Notify::new());
         let wake_watchdog = Arc::new(Notify::new());
         let trip_done = Arc::new(Notify::new());
+        let reading_period_ns = config.monitor_period_ns;
         let watch = Watch {
             state: state.clone(),
             sensor: sensor.clone(),
@@ -222,7 +225,14 @@ impl Monitor {
             wake_watchdog,
             trip_done,
             task: Some(task),
+            reading_period_ns,
         }
+    }
+
+    /// The longest interval between two readings the plan sees, ns: how late a threshold
+    /// crossing can be noticed.
+    pub(crate) fn reading_period_ns(&self) -> u64 {
+        self.reading_period_ns
     }
 
     /// Asks for a read now rather than at the next scheduled one.

@@ -248,12 +248,15 @@ impl Axis for Smc100Axis {
     }
 
     async fn status(&mut self) -> Result<AxisStatus, RigError> {
+        // The state first: a stage that reads at rest stays there, so `TP` after it is where
+        // it rests; the other order reports a move that ends between the two at rest with a
+        // position from mid-move.
+        let st = self.state().await?;
         let tp = self.query("TP").await?;
         let position = tp.parse::<f64>().map_err(|_| RigError::Garbled {
             device: self.name(),
             detail: format!("TP value `{}`", crate::quote(&tp)),
         })?;
-        let st = self.state().await?;
         Ok(AxisStatus {
             position,
             moving: matches!(st, 0x1E | 0x1F | 0x28),

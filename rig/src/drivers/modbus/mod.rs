@@ -323,6 +323,17 @@ impl Axis for ModbusAxis {
     async fn status(&mut self) -> Result<AxisStatus, RigError> {
         let m = self.map.clone();
         let (patience, name) = (self.patience(), self.name());
+        // The status word first: a stage that reads at rest stays there, so the position
+        // read after it is where it rests. The other order lets a move that ends between
+        // the two reads be reported at rest with a position from mid-move.
+        let st = call(
+            &self.ctx,
+            patience,
+            &name,
+            &format!("read {:#06x} (status)", m.status),
+            Op::Read(m.status, 1),
+        )
+        .await?;
         let pos = call(
             &self.ctx,
             patience,
@@ -333,14 +344,6 @@ impl Axis for ModbusAxis {
                 m.position + 1
             ),
             Op::Read(m.position, 2),
-        )
-        .await?;
-        let st = call(
-            &self.ctx,
-            patience,
-            &name,
-            &format!("read {:#06x} (status)", m.status),
-            Op::Read(m.status, 1),
         )
         .await?;
         let (Some(&p0), Some(&p1), Some(&s)) = (pos.first(), pos.get(1), st.first()) else {

@@ -7,8 +7,8 @@
 //! Data Value (0x03); a move while moving answers Server Device Busy (0x06); requests for
 //! another unit id get no reply (the driver times out). Motion follows injectable
 //! [`Timing`] (late BUSY, settling into IN-POS, overshoot). Faults: every reply busy, the
-//! next N replies busy, silence, a drive stuck busy, a drive that ignores triggers, and
-//! (RTU) garbled replies.
+//! next N replies busy, silence, a drive stuck busy, a drive that ignores triggers, late
+//! replies, and (RTU) garbled replies.
 //!
 //! `tokio-modbus`'s RTU server needs `tokio-serial` (libudev), so the RTU side frames by
 //! hand ([`rtu`]): requests are cut by their function code's length (or, for a function
@@ -18,7 +18,7 @@
 pub mod drive;
 mod rtu;
 
-use std::future::{Ready, ready};
+use std::future::ready;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -48,6 +48,9 @@ pub struct Faults {
     pub stuck_busy: bool,
     /// The drive accepts trigger writes and never moves (a drive in the wrong mode).
     pub ignore_triggers: bool,
+    /// Each request is answered this long after it arrives, from the drive's state at the
+    /// answer (a slow bus, a loaded host): two reads of one status poll see two instants.
+    pub reply_delay: std::time::Duration,
 }
 
 #[derive(Clone)]
@@ -60,6 +63,11 @@ struct Service {
 }
 
 impl Service {
+    /// How long the next reply waits (the fault).
+    fn reply_delay(&self) -> std::time::Duration {
+        lock(&self.faults).reply_delay
+    }
+
     /// The answer to one request: `None` for silence (another unit, or the fault).
     fn handle(&self, slave: u8, request: Request<'_>) -> Option<Result<Response, ExceptionCode>> {
         let f = {
@@ -96,10 +104,20 @@ impl tokio_modbus::server::Service for Service {
     type Request = SlaveRequest<'static>;
     type Response = Option<Response>;
     type Exception = ExceptionCode;
-    type Future = Ready<Result<Self::Response, Self::Exception>>;
+    type Future = std::pin::Pin<
+        Box<dyn std::future::Future<Output = Result<Self::Response, Self::Exception>> + Send>,
+    >;
 
     fn call(&self, req: Self::Request) -> Self::Future {
-        ready(self.handle(req.slave, req.request).transpose())
+        let delay = self.reply_delay();
+        if delay.is_zero() {
+            return Box::pin(ready(self.handle(req.slave, req.request).transpose()));
+        }
+        let svc = self.clone();
+        Box::pin(async move {
+            tokio::time::sleep(delay).await;
+            svc.handle(req.slave, req.request).transpose()
+        })
     }
 }
 

@@ -48,6 +48,10 @@ fn rtu_reply(svc: &Service, frame: &[u8]) -> Option<Vec<u8>> {
         _ => Request::Custom(fc, Vec::new().into()),
     };
     let mut out = vec![slave];
+    let delay = svc.reply_delay();
+    if !delay.is_zero() {
+        std::thread::sleep(delay);
+    }
     match svc.handle(slave, request)? {
         Ok(Response::ReadHoldingRegisters(words)) => {
             out.extend([fc, (2 * words.len()) as u8]);

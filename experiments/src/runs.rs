@@ -36,6 +36,27 @@ pub fn effective_status(dir: &Path, status: Status) -> &'static str {
     }
 }
 
+/// Wall time the run spent running, s: from start to end, less the time between a
+/// segment's end and the resume that followed it (`None` while running or when unknown).
+fn run_time_s(m: &rundir::write::Manifest) -> Option<f64> {
+    let at = |s: &str| s.parse::<jiff::Timestamp>().ok();
+    let span = |start: &str, end: &str| -> Option<f64> {
+        Some((at(end)?.as_nanosecond() - at(start)?.as_nanosecond()) as f64 / 1e9)
+    };
+    let mut total = 0.0;
+    let mut start = m.started_utc.as_str();
+    for seg in &m.resumed {
+        // An old manifest without the segment's end counts the pause, as before.
+        let end = seg
+            .previous_ended_utc
+            .as_deref()
+            .unwrap_or(&seg.started_utc);
+        total += span(start, end)?.max(0.0);
+        start = &seg.started_utc;
+    }
+    Some(total + span(start, m.ended_utc.as_deref()?)?.max(0.0))
+}
+
 /// Lists the runs in `root`, oldest first.
 pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
     let entries =
@@ -54,15 +75,7 @@ pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
                     && m.devices
                         .iter()
                         .all(|d| d.identity.starts_with("simulated"));
-                let at = |s: &str| s.parse::<jiff::Timestamp>().ok();
-                let duration_s = m
-                    .ended_utc
-                    .as_deref()
-                    .and_then(at)
-                    .zip(at(&m.started_utc))
-                    .map(|(end, start)| {
-                        (end.as_nanosecond() - start.as_nanosecond()) as f64 * 1e-9
-                    });
+                let duration_s = run_time_s(&m);
                 RunSummary {
                     status: effective_status(&dir, m.status).to_string(),
                     protocol: m.protocol,
@@ -106,4 +119,41 @@ pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
             },
         })
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rundir::write::{Manifest, Segment};
+
+    #[test]
+    fn a_resumed_runs_duration_leaves_out_the_time_it_was_down() {
+        let text = "status: completed\nprotocol: p\nprotocol_file: p.yaml\nrig: r\n\
+                    rig_file: r.yaml\nstarted_utc: 2026-11-26T10:00:00Z\ngelrig_version: v\n\
+                    seed: 0\nclock: monotonic\npid: 1\nsteps_planned: 4\nsteps_completed: 4\n\
+                    eta_s: [1.0, 2.0]\nended_utc: 2026-11-26T11:05:00Z\n";
+        let mut m: Manifest = serde_yaml::from_str(text).expect("a minimal manifest");
+        assert_eq!(run_time_s(&m), Some(3900.0), "one segment: start to end");
+        let segment = |started: &str, ended: Option<&str>| Segment {
+            started_utc: started.into(),
+            t_start_ns: 0,
+            from_step: 2,
+            pid: 2,
+            previous_status: "interrupted".into(),
+            previous_message: None,
+            previous_ended_utc: ended.map(String::from),
+        };
+        // Killed at 10:10 (its last write), resumed at 11:00, ended at 11:05.
+        m.resumed = vec![segment(
+            "2026-11-26T11:00:00Z",
+            Some("2026-11-26T10:10:00Z"),
+        )];
+        assert_eq!(run_time_s(&m), Some(900.0));
+        // An older manifest without the end counts the pause.
+        m.resumed = vec![segment("2026-11-26T11:00:00Z", None)];
+        assert_eq!(run_time_s(&m), Some(3900.0));
+        // Still running: unknown.
+        m.ended_utc = None;
+        assert_eq!(run_time_s(&m), None);
+    }
 }

@@ -33,6 +33,7 @@ fn field(c: &mut Criterion) {
             shear: false,
             twist: false,
             field_view_mm: Some((45.36, 40.32)),
+            pressing_friction: false,
             quality: Quality {
                 field_cells: n,
                 ..Quality::default()

@@ -100,6 +100,7 @@ fn main() {
             shear: false,
             twist: false,
             field_view_mm: Some((45.36, 40.32)),
+            pressing_friction: false,
             quality: Quality {
                 field_cells: n,
                 ..Quality::default()
@@ -299,6 +300,7 @@ fn main() {
                 shear,
                 twist,
                 field_view_mm: view,
+                pressing_friction: false,
                 quality: Quality::default(),
             })
             .expect("builds");

@@ -24,6 +24,7 @@ pub mod greens;
 pub mod operator;
 #[cfg(test)]
 mod oracles;
+pub mod pressing;
 pub mod punch;
 pub mod response;
 pub mod solve;

@@ -463,6 +463,7 @@ fn extreme_inputs_stay_finite() {
         shear: true,
         twist: false,
         field_view_mm: Some((20.0, 15.0)),
+        pressing_friction: false,
         quality: Quality::default(),
     })
     .expect("builds");
@@ -512,6 +513,7 @@ fn normal_and_shear_fields_superpose_while_stuck() {
         shear: true,
         twist: false,
         field_view_mm: Some((45.36, 40.32)),
+        pressing_friction: false,
         quality: Quality::default(),
     })
     .expect("builds");

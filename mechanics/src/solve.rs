@@ -58,7 +58,7 @@ fn dot_masked(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
 
 /// CG for A x = b on the cells where `mask` is true, A = masked `apply`; entries of `x`
 /// outside the mask stay as given and act as a fixed load.
-fn cg(
+pub(crate) fn cg(
     apply: &dyn Fn(&[f64], &mut [f64]),
     mask: &[bool],
     b: &[f64],

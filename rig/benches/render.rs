@@ -69,6 +69,7 @@ fn render(c: &mut Criterion) {
             shear: false,
             twist: false,
             field_view_mm: Some((s.view_width_mm, s.view_height_mm)),
+            pressing_friction: false,
             quality: Quality::default(),
         })
         .expect("model");

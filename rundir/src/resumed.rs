@@ -109,6 +109,7 @@ mod tests {
                 pid: 0,
                 previous_status: "interrupted".into(),
                 previous_message: None,
+                previous_ended_utc: None,
             })
             .collect();
         m

@@ -4,6 +4,7 @@
 // Test code: panicking on a broken fixture is the point.
 #![allow(clippy::unwrap_used)]
 
+mod bonded_punch;
 mod dry_run;
 mod export;
 mod faults;

@@ -160,13 +160,36 @@ pub(crate) fn run_virtual(
     (outcome, plan)
 }
 
+/// Where this test process keeps its shared dry runs: a directory of its own under the
+/// target's test scratch space. A static is never dropped, so a temporary directory there
+/// would outlive the process (1.4 GB of runs each time); instead the directories of
+/// processes that have ended are removed when the next one starts.
+fn shared_runs_root() -> PathBuf {
+    let base = Path::new(env!("CARGO_TARGET_TMPDIR")).join("shared-dry-runs");
+    if let Ok(entries) = std::fs::read_dir(&base) {
+        for e in entries.flatten() {
+            let ended = e
+                .file_name()
+                .to_str()
+                .and_then(|n| n.parse::<u32>().ok())
+                .is_none_or(|pid| !Path::new(&format!("/proc/{pid}")).exists());
+            if ended {
+                let _ = std::fs::remove_dir_all(e.path());
+            }
+        }
+    }
+    let root = base.join(std::process::id().to_string());
+    std::fs::create_dir_all(&root).unwrap();
+    root
+}
+
 /// The run directory of a shipped protocol dry-run once per test process (seed 1),
 /// shared by every test that only reads it.
 pub(crate) fn shared_dry_run(name: &str) -> PathBuf {
     static RUNS: OnceLock<std::sync::Mutex<std::collections::BTreeMap<String, PathBuf>>> =
         OnceLock::new();
-    static ROOT: OnceLock<tempfile::TempDir> = OnceLock::new();
-    let root = ROOT.get_or_init(|| tempfile::tempdir().unwrap());
+    static ROOT: OnceLock<PathBuf> = OnceLock::new();
+    let root = ROOT.get_or_init(shared_runs_root);
     let runs = RUNS.get_or_init(Default::default);
     let mut map = runs
         .lock()
@@ -175,7 +198,7 @@ pub(crate) fn shared_dry_run(name: &str) -> PathBuf {
         return dir.clone();
     }
     let loaded = load_ok(&protocol(name));
-    let out = root.path().join(name);
+    let out = root.join(name);
     let (outcome, _) = run_virtual(&loaded, &out, 1, None);
     assert_eq!(
         outcome.status,

@@ -474,6 +474,7 @@ fn analyse_fields(
         shear: needs_shear,
         twist: false,
         field_view_mm: Some((model.spec.view_width_mm, model.spec.view_height_mm)),
+        pressing_friction: false,
         quality: model.spec.quality,
     }) {
         Ok(m) => m,

@@ -62,6 +62,8 @@ pub struct Resume {
     /// How the previous segment ended.
     previous_status: String,
     previous_message: Option<String>,
+    /// When the previous segment ended (a killed one: when it last wrote), RFC 3339 UTC.
+    previous_ended_utc: Option<String>,
 }
 
 /// Why a run cannot be resumed, naming the fix.
@@ -189,6 +191,7 @@ impl Resume {
             devices: manifest.devices.clone(),
             previous_status,
             previous_message: manifest.reason.clone().or(manifest.error.clone()),
+            previous_ended_utc: manifest.ended_utc.clone().or_else(|| last_written_utc(dir)),
         })
     }
 
@@ -201,6 +204,7 @@ impl Resume {
             pid: std::process::id(),
             previous_status: self.previous_status.clone(),
             previous_message: self.previous_message.clone(),
+            previous_ended_utc: self.previous_ended_utc.clone(),
         });
         m.status = Status::Running;
         m.reason = None;
@@ -333,6 +337,22 @@ fn last_record_ns(dir: &Path) -> u64 {
         }
     }
     last
+}
+
+/// When the run's files were last written (a killed segment records no end), RFC 3339 UTC.
+fn last_written_utc(dir: &Path) -> Option<String> {
+    [
+        "journal.jsonl",
+        "force.csv",
+        "frames.csv",
+        "steps.csv",
+        "run.yaml",
+    ]
+    .iter()
+    .filter_map(|f| std::fs::metadata(dir.join(f)).ok()?.modified().ok())
+    .max()
+    .and_then(|t| jiff::Timestamp::try_from(t).ok())
+    .map(|t| t.to_string())
 }
 
 /// The last 64 KiB of a file, as text.

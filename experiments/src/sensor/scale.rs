@@ -44,6 +44,7 @@ pub(crate) fn reference_fields(spec: &PlantSpec, layout: &Layout) -> Result<Scal
         shear: true,
         twist: true,
         field_view_mm: Some((spec.view_width_mm, spec.view_height_mm)),
+        pressing_friction: false,
         quality: spec.quality,
     })
     .map_err(|e| format!("the reference contact's model failed: {e}"))?;

@@ -223,6 +223,11 @@ pub struct SimConfig {
     /// Add sensor noise at the sensor's resolution (default true).
     #[serde(default)]
     pub noise: Option<bool>,
+    /// Press flat punches with friction — the coupled normal–tangential contact, in which
+    /// the face holds the gel's outward flow and presses 9–39 % harder on the shipped
+    /// punches (default false: frictionless pressing, friction found on it one way).
+    #[serde(default)]
+    pub pressing_friction: Option<bool>,
 }
 
 /// One segment of a path into a YAML document, to locate a value for an error message.

@@ -142,6 +142,10 @@ pub struct Segment {
     /// Why it ended, when it said.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub previous_message: Option<String>,
+    /// When the previous segment ended, RFC 3339 UTC (a killed one: when it last wrote a
+    /// file), so a run's duration leaves out the time it was down.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub previous_ended_utc: Option<String>,
 }
 
 /// Reads a run directory's manifest.

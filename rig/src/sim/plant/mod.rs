@@ -83,6 +83,8 @@ pub(crate) struct BenchGeometry {
     pub grip_contact_mm: f64,
     pub force_bias_n: f64,
     pub noise: bool,
+    /// Flat punches pressed with friction (`sim: {pressing_friction: true}`).
+    pub pressing_friction: bool,
 }
 
 impl BenchGeometry {
@@ -103,6 +105,7 @@ impl BenchGeometry {
                 .unwrap_or(sim.normal_contact.mm()),
             force_bias_n: sim.force_bias.map(|f| f.n()).unwrap_or(0.0),
             noise: sim.noise.unwrap_or(true),
+            pressing_friction: sim.pressing_friction.unwrap_or(false),
         })
     }
 }
@@ -242,6 +245,7 @@ impl Plant {
             field_view_mm: needs
                 .fields
                 .then_some((spec.view_width_mm, spec.view_height_mm)),
+            pressing_friction: geometry.pressing_friction,
             quality: spec.quality,
         })
         .map_err(|e| RigError::Plant(e.to_string()))?;
@@ -615,12 +619,15 @@ impl Plant {
             fy += d.force_y_n * phase.sin();
             tz += d.torque_z_nmm * phase.sin();
         }
+        let fx = self.shear.as_ref().map(|c| c.state.value()).unwrap_or(0.0);
+        // A stuck punch's shear tilts its pressure through the layer's coupling.
+        let (tx, ty) = self.model.tilting_moments_nmm(fx, fy);
         Wrench {
-            fx_n: self.shear.as_ref().map(|c| c.state.value()).unwrap_or(0.0),
+            fx_n: fx,
             fy_n: fy,
             fz_n: self.normal.value().max(0.0),
-            tx_nmm: 0.0,
-            ty_nmm: 0.0,
+            tx_nmm: tx,
+            ty_nmm: ty,
             tz_nmm: tz,
         }
     }
@@ -647,23 +654,29 @@ impl Plant {
             Some(s[i - 1] * (1.0 - t) + s[i] * t)
         };
         let h = self.spec.contact.layer.thickness_mm;
+        let fx_eq = self
+            .shear
+            .as_ref()
+            .map(|c| c.element.force())
+            .unwrap_or(0.0);
+        let (tx_eq, ty_eq) = if self.grasp.is_some() {
+            (0.0, 0.0)
+        } else {
+            self.model.tilting_moments_nmm(fx_eq, 0.0)
+        };
         SimTruth {
             depth_mm: d,
             wrench: self.true_wrench(),
             equilibrium: Wrench {
-                fx_n: self
-                    .shear
-                    .as_ref()
-                    .map(|c| c.element.force())
-                    .unwrap_or(0.0),
+                fx_n: fx_eq,
                 fy_n: self.grasp_loads().map(|l| l.sponge_n).unwrap_or(0.0),
                 fz_n: if d > 0.0 {
                     self.elastic_normal_n(d)
                 } else {
                     0.0
                 },
-                tx_nmm: 0.0,
-                ty_nmm: 0.0,
+                tx_nmm: tx_eq,
+                ty_nmm: ty_eq,
                 tz_nmm: self
                     .twist
                     .as_ref()

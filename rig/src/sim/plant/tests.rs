@@ -34,6 +34,7 @@ fn plant(indenter: Indenter, prony: Vec<PronyTerm>, mass: Option<f64>, needs: Pl
         grip_contact_mm: 10.0,
         force_bias_n: 0.0,
         noise: false,
+        pressing_friction: false,
     };
     Plant::new(spec, geometry, needs, 1).expect("plant")
 }
@@ -103,11 +104,14 @@ fn shear_sticks_partially_slips_then_slides_with_a_drop() {
     let mut stick = Vec::new();
     let mut slips = Vec::new();
     let mut fx = Vec::new();
+    let mut tilt = Vec::new();
     for k in 1..=24 {
         p.start_move(AxisRole::Shear, 0.05 * k as f64, 0.1, t, false);
         t += 2 * S;
         p.advance_to(t);
-        fx.push(p.true_wrench().fx_n);
+        let w = p.true_wrench();
+        fx.push(w.fx_n);
+        tilt.push((w.tx_nmm, w.ty_nmm));
         let truth = p.truth(t);
         stick.push(truth.shear_stick_fraction.unwrap_or(-1.0));
         slips.push(truth.shear_slips);
@@ -122,11 +126,20 @@ fn shear_sticks_partially_slips_then_slides_with_a_drop() {
     );
     assert!(first_slip > 5, "{slips:?}");
     let peak = fx.iter().cloned().fold(0.0, f64::max);
+    // The slip limit is μ times the plant's own Fz (the grid's pressure scaled as its force).
+    // (The steps sample the backbone's rounded top just short of it: 1.5 % below here;
+    // unscaled, the limit itself was 3.5 % below.)
     assert!(
-        peak <= 0.6 * fz * 1.03 && peak > 0.55 * fz,
+        peak <= 0.6 * fz * 1.005 && peak > 0.6 * fz * 0.98,
         "peak {peak} vs μP {}",
         0.6 * fz
     );
+    // The shear tilts the pressure forward: My = −arm·Fx (0.91 mm for this punch on the box
+    // gel), no Mx without a y force.
+    for ((tx, ty), f) in tilt.iter().zip(&fx) {
+        assert_eq!(*tx, 0.0);
+        assert!((ty / f + 0.91).abs() < 0.05, "My {ty} for Fx {f}");
+    }
     let last = *fx.last().unwrap_or(&0.0);
     assert!(last < 0.95 * peak, "drop after slip: {last} vs {peak}");
 }

@@ -33,6 +33,14 @@ use crate::operator::{Compliance, Grid, LayerOperator, fast_size};
 use crate::solve::{Tangential, Tolerance, normal_known_area, normal_unknown_area, tangential};
 use crate::{Indenter, MechanicsError, punch};
 
+mod curved;
+mod flat;
+mod shapes;
+mod tangential;
+
+use flat::{flat_pressing, tilt_arm};
+use shapes::{face_mask, matched_dx, profile};
+
 /// What the model must be able to answer.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelSpec {
@@ -46,6 +54,11 @@ pub struct ModelSpec {
     pub twist: bool,
     /// Build displacement fields covering a view of this width and height (mm).
     pub field_view_mm: Option<(f64, f64)>,
+    /// Press flat punches with friction: the coupled normal–tangential problem
+    /// ([`crate::pressing`]), in which the face holds the gel's outward flow and presses
+    /// harder for it (+9 % to +39 % on the shipped punches). `false`: the frictionless
+    /// pressure, with friction found on it one way (Goodman), as before.
+    pub pressing_friction: bool,
     /// Resolution.
     pub quality: Quality,
 }
@@ -191,6 +204,9 @@ pub struct ContactModel {
     field_op: Option<LayerOperator>,
     field_pressure: BTreeMap<u64, Vec<f64>>,
     pressing: BTreeMap<u64, (Vec<f64>, Vec<f64>, Grid)>,
+    /// Tilting-moment arms (mm) of a flat punch's shear along x and along y (zero when
+    /// no shear is built, and for curved indenters).
+    tilt_arms_mm: (f64, f64),
 }
 
 fn tol() -> Tolerance {
@@ -198,90 +214,6 @@ fn tol() -> Tolerance {
         rel: 1e-7,
         max_iter: 4000,
     }
-}
-
-/// Profile of a curved indenter (mm above its lowest point) at (x, y); large outside it.
-fn profile(ind: &Indenter, layer_width: f64, x: f64, y: f64) -> f64 {
-    const AWAY: f64 = 1e3;
-    match *ind {
-        Indenter::Sphere { diameter_mm } => {
-            let r = diameter_mm / 2.0;
-            let r2 = x * x + y * y;
-            if r2 < r * r {
-                r - (r * r - r2).sqrt()
-            } else {
-                AWAY
-            }
-        }
-        Indenter::Cylinder {
-            diameter_mm,
-            length_mm,
-        } => {
-            let r = diameter_mm / 2.0;
-            // Axis along x, the direction the tangential solver loads: a can's weight pulls
-            // along its own axis (thesis §6.3), so the grasp's shear runs along the strip.
-            let half = length_mm.min(layer_width) / 2.0;
-            if x.abs() <= half && y.abs() < r {
-                r - (r * r - y * y).sqrt()
-            } else {
-                AWAY
-            }
-        }
-        _ => 0.0,
-    }
-}
-
-/// Face of a flat punch centred at the origin.
-fn inside_face(ind: &Indenter, x: f64, y: f64) -> bool {
-    match *ind {
-        Indenter::FlatCircle { diameter_mm } => x * x + y * y <= (diameter_mm / 2.0).powi(2),
-        Indenter::FlatEllipse { major_mm, minor_mm } => {
-            (x / (major_mm / 2.0)).powi(2) + (y / (minor_mm / 2.0)).powi(2) <= 1.0
-        }
-        Indenter::FlatRectangle {
-            width_mm,
-            length_mm,
-        } => x.abs() <= width_mm / 2.0 && y.abs() <= length_mm / 2.0,
-        Indenter::FlatTriangle { side_mm } => {
-            let rc = side_mm / 3f64.sqrt();
-            let v: Vec<(f64, f64)> = (0..3)
-                .map(|k| {
-                    let a = -PI / 2.0 + k as f64 * 2.0 * PI / 3.0;
-                    (rc * a.cos(), rc * a.sin())
-                })
-                .collect();
-            (0..3).all(|k| {
-                let (ax, ay) = v[k];
-                let (bx, by) = v[(k + 1) % 3];
-                (bx - ax) * (y - ay) - (by - ay) * (x - ax) >= 0.0
-            })
-        }
-        _ => false,
-    }
-}
-
-/// A cell size near `dx` (within +12 %) at which the discretised face of a flat punch has
-/// the face's true area: the face's area sets its effective radius, and an area error of
-/// one edge cell moves the whole outside field (it made a 256² field 2 % off at its worst
-/// marker; matched, 0.6 %).
-fn matched_dx(ind: &Indenter, n: usize, dx: f64) -> f64 {
-    let Some(area) = ind.flat_area_mm2() else {
-        return dx;
-    };
-    let mismatch = |dx: f64| {
-        let g = Grid { n, dx };
-        let cells = (0..g.len())
-            .filter(|i| {
-                let (x, y) = g.xy(*i);
-                inside_face(ind, x, y)
-            })
-            .count();
-        (cells as f64 * dx * dx - area).abs()
-    };
-    (0..=48)
-        .map(|k| dx * (1.0 + 0.0025 * k as f64))
-        .min_by(|a, b| mismatch(*a).total_cmp(&mismatch(*b)))
-        .unwrap_or(dx)
 }
 
 fn quantise(depth_mm: f64, h: f64) -> u64 {
@@ -361,6 +293,7 @@ impl ContactModel {
             field_op: None,
             field_pressure: BTreeMap::new(),
             pressing: BTreeMap::new(),
+            tilt_arms_mm: (0.0, 0.0),
             spec: spec.clone(),
         };
         let extent = c.indenter.footprint_mm();
@@ -390,20 +323,30 @@ impl ContactModel {
                 )
             };
             let grid = op.grid();
-            let mask: Vec<bool> = (0..grid.len())
-                .map(|i| {
-                    let (x, y) = grid.xy(i);
-                    inside_face(&c.indenter, x, y)
-                })
-                .collect();
-            let s = normal_known_area(&op, &mask, &vec![1.0; grid.len()], tol());
+            let mask = face_mask(&c.indenter, grid);
+            // Pressed with friction: the face holds the gel that the layer's coupling pushes
+            // outward, and presses harder for it (`crate::pressing`); or frictionless, with
+            // the friction found on that pressure one way.
+            let s = flat_pressing(&op, &mask, c.material.friction, spec.pressing_friction);
             let mut force = s.force_n;
             if let Indenter::FlatCircle { diameter_mm } = c.indenter {
-                // Exact stiffening (Nyström) for the force; the grid gives the shape.
+                // Exact stiffening (Nyström) for the frictionless force, times the grid's
+                // ratio of the pressed-with-friction force to its own frictionless one (the
+                // grid's discretisation error cancels in the ratio: 1.0883, 1.0882, 1.0876
+                // at 16, 32, 48 cells on the 9.5 mm box punch); the grid gives the shape.
                 let a = diameter_mm / 2.0;
                 let kappa = punch::layer_kappa(a / h, nu, 48);
-                force = 2.0 * c.material.contact_modulus_mpa() * a * kappa;
+                let free = normal_known_area(&op, &mask, &vec![1.0; grid.len()], tol()).force_n;
+                force = 2.0 * c.material.contact_modulus_mpa() * a * kappa * s.force_n / free;
             }
+            // Tangential forces come from the same grid pressure: scaled as the normal force
+            // is, so the slip limit is μ times the model's Fz (unscaled, 0.579 Fz for μ = 0.6
+            // on the 9.5 mm punch).
+            let calibration = force / s.force_n;
+            if spec.shear {
+                model.tilt_arms_mm = (tilt_arm(&op, &mask, 0), tilt_arm(&op, &mask, 1));
+            }
+            model.pressing.insert(0, (s.t.qx, s.t.qy, grid));
             model.normal = Normal::Flat {
                 grid,
                 mask,
@@ -412,17 +355,32 @@ impl ContactModel {
             };
             model.op = Some(op);
             if spec.shear {
-                let t = model.tangential_table(1.0, Kind::Shear);
+                let mut t = model.tangential_table(1.0, Kind::Shear);
+                t.backbone.f.iter_mut().for_each(|f| *f *= calibration);
                 model.shear.insert(0, t);
             }
             if spec.twist {
-                let t = model.tangential_table(1.0, Kind::Twist);
+                let mut t = model.tangential_table(1.0, Kind::Twist);
+                t.backbone.f.iter_mut().for_each(|f| *f *= calibration);
                 model.twist.insert(0, t);
             }
         } else {
             model.normal = model.curved_table(max_depth);
         }
         Ok(model)
+    }
+
+    /// The tilting moments (Tx, Ty), N·mm, that the tangential forces (Fx, Fy) of a flat
+    /// punch carry, about the contact's centre on the gel surface (z into the gel, the
+    /// moment of the tractions on the gel): a stuck punch sheared along x presses harder on
+    /// its leading side through the layer's coupling, My = −arm·Fx, Mx = +arm·Fy. Linear
+    /// (full-stick) arms: about 0.53 mm on the box gel's 9.5 mm punch, 0.91 mm on the
+    /// 12.68 mm one, 1.31 mm on the portable gel's 12.5 mm punch
+    /// (`cargo run --release -p mechanics --example pressing_friction`). Zero for curved
+    /// indenters and when the model was built without shear.
+    pub fn tilting_moments_nmm(&self, fx_n: f64, fy_n: f64) -> (f64, f64) {
+        let (ax, ay) = self.tilt_arms_mm;
+        (ay * fy_n, -ax * fx_n)
     }
 
     /// The contact it models.
@@ -574,20 +532,14 @@ impl ContactModel {
             c.material.shear_modulus_mpa(),
             c.material.poisson_ratio,
         );
-        let p = self.pressure_on(&fine, 1.0);
-        let (mut sx, mut sy) = (vec![0.0; fine_grid.len()], vec![0.0; fine_grid.len()]);
-        fine.tangential_from_normal(&p, &mut sx, &mut sy);
-        let zero = vec![0.0; fine_grid.len()];
-        let press = tangential(&Tangential {
-            op: &fine,
-            p: &p,
-            mu: c.material.friction,
-            target: (&zero, &zero),
-            source: Some((&sx, &sy)),
-            x_only: false,
-            initial: None,
-            tol: tol(),
-        });
+        let mask = face_mask(&c.indenter, fine_grid);
+        let press = flat_pressing(
+            &fine,
+            &mask,
+            c.material.friction,
+            self.spec.pressing_friction,
+        );
+        let (p, press) = (press.p, press.t);
         let restrict = |f: &[f64]| -> Vec<f64> {
             let (n, m) = (g.n, fine_grid.n);
             (0..g.len())
@@ -686,15 +638,14 @@ impl ContactModel {
                 p_per_mm.iter().map(|v| v * depth_mm).collect()
             }
             Normal::Flat { .. } => {
-                let g = op.grid();
-                let ind = &self.spec.contact.indenter;
-                let mask: Vec<bool> = (0..g.len())
-                    .map(|i| {
-                        let (x, y) = g.xy(i);
-                        inside_face(ind, x, y)
-                    })
-                    .collect();
-                normal_known_area(op, &mask, &vec![depth_mm; g.len()], tol()).p
+                let mask = face_mask(&self.spec.contact.indenter, op.grid());
+                let unit = flat_pressing(
+                    op,
+                    &mask,
+                    self.spec.contact.material.friction,
+                    self.spec.pressing_friction,
+                );
+                unit.p.iter().map(|v| v * depth_mm).collect()
             }
             Normal::Curved { .. } => {
                 let g = op.grid();
@@ -707,192 +658,6 @@ impl ContactModel {
                     .collect();
                 normal_unknown_area(op, &prof, depth_mm, None, tol()).p
             }
-        }
-    }
-
-    /// Solves the tangential backbone at `depth_mm` (unit depth for flat punches).
-    fn tangential_table(&self, depth_mm: f64, kind: Kind) -> TangentialTable {
-        let c = &self.spec.contact;
-        let mu = c.material.friction;
-        let op = self.op_for(depth_mm);
-        let grid = op.grid();
-        let p = self.pressure_on(&op, depth_mm);
-        let (mut sx, mut sy) = (vec![0.0; grid.len()], vec![0.0; grid.len()]);
-        op.tangential_from_normal(&p, &mut sx, &mut sy);
-        let zero = vec![0.0; grid.len()];
-        // Pressing: the punch does not move sideways, so contact points stick where they
-        // touched while the coupling pushes the surface outward (Goodman approximation).
-        let press = tangential(&Tangential {
-            op: &op,
-            p: &p,
-            mu,
-            target: (&zero, &zero),
-            source: Some((&sx, &sy)),
-            x_only: false,
-            initial: None,
-            tol: tol(),
-        });
-        let (mut u0x, mut u0y) = (vec![0.0; grid.len()], vec![0.0; grid.len()]);
-        op.tangential(&press.qx, &press.qy, &mut u0x, &mut u0y);
-        for i in 0..grid.len() {
-            u0x[i] += sx[i];
-            u0y[i] += sy[i];
-        }
-        let total_p: f64 = p.iter().sum::<f64>() * grid.area();
-        let a_eff = (p.iter().filter(|v| **v > 0.0).count() as f64 * grid.area() / PI).sqrt();
-        // The linear (full-stick) stiffness sets the scale of the levels.
-        let unit = 1e-3;
-        let solve = |x: f64, init: Option<&(Vec<f64>, Vec<f64>)>| {
-            let (tx, ty): (Vec<f64>, Vec<f64>) = (0..grid.len())
-                .map(|i| {
-                    let (gx, gy) = grid.xy(i);
-                    match kind {
-                        Kind::Shear => (u0x[i] + x, u0y[i]),
-                        Kind::Twist => (u0x[i] - x * gy, u0y[i] + x * gx),
-                    }
-                })
-                .unzip();
-            tangential(&Tangential {
-                op: &op,
-                p: &p,
-                mu,
-                target: (&tx, &ty),
-                source: Some((&sx, &sy)),
-                x_only: false,
-                initial: init.map(|(a, b)| (a.as_slice(), b.as_slice())),
-                tol: tol(),
-            })
-        };
-        let measure = |s: &crate::solve::TangentialSolution| -> f64 {
-            match kind {
-                Kind::Shear => s.fx_n - press.fx_n,
-                Kind::Twist => s.torque_nmm(grid) - press.torque_nmm(grid),
-            }
-        };
-        let probe = solve(
-            unit * if kind == Kind::Twist {
-                1.0 / a_eff.max(1e-6)
-            } else {
-                1.0
-            },
-            None,
-        );
-        let x_probe = unit
-            * if kind == Kind::Twist {
-                1.0 / a_eff.max(1e-6)
-            } else {
-                1.0
-            };
-        let stiffness = measure(&probe) / x_probe;
-        let limit = match kind {
-            Kind::Shear => mu * total_p,
-            Kind::Twist => {
-                mu * (0..grid.len())
-                    .map(|i| p[i] * grid.xy(i).0.hypot(grid.xy(i).1))
-                    .sum::<f64>()
-                    * grid.area()
-            }
-        };
-        let x_lin = if stiffness > 0.0 {
-            limit / stiffness
-        } else {
-            0.0
-        };
-        let mut xs = vec![0.0];
-        let mut fs = vec![0.0];
-        let mut stick = vec![1.0];
-        let mut tractions = vec![(press.qx.clone(), press.qy.clone())];
-        let mut prev: Option<(Vec<f64>, Vec<f64>)> = None;
-        // Under torsion the centre's slip βr vanishes, so a few central cells stick until
-        // large twists: levels go further, and under 2 % stick counts as full slip.
-        for frac in [
-            0.1, 0.3, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.35, 1.5, 1.7, 2.0, 2.5, 3.0, 4.0,
-            6.0,
-        ] {
-            let x = frac * x_lin;
-            let s = solve(x, prev.as_ref());
-            let f = measure(&s).min(limit);
-            let sf = s.stick_fraction(&p);
-            xs.push(x);
-            // A backbone must not decrease (rounding near full slip).
-            fs.push(f.max(*fs.last().unwrap_or(&0.0)));
-            stick.push(sf);
-            tractions.push((s.qx.clone(), s.qy.clone()));
-            prev = Some((s.qx, s.qy));
-            if sf < 0.02 {
-                break;
-            }
-        }
-        // The last point is full slip: the backbone saturates there.
-        if let Some(last) = fs.last_mut() {
-            *last = limit.max(*last);
-        }
-        if let Some(last) = stick.last_mut() {
-            *last = 0.0;
-        }
-        TangentialTable {
-            backbone: Backbone { x: xs, f: fs },
-            stick_fraction: stick,
-            tractions,
-            pressing: (press.qx, press.qy),
-            grid,
-        }
-    }
-
-    fn curved_table(&self, max_depth: f64) -> Normal {
-        let c = &self.spec.contact;
-        let h = c.layer.thickness_mm;
-        let mu_mod = c.material.shear_modulus_mpa();
-        let nu = c.material.poisson_ratio;
-        let radius = match c.indenter {
-            Indenter::Sphere { diameter_mm } | Indenter::Cylinder { diameter_mm, .. } => {
-                diameter_mm / 2.0
-            }
-            _ => 1.0,
-        };
-        let length = match c.indenter {
-            Indenter::Cylinder { length_mm, .. } => length_mm.min(c.layer.width_mm),
-            _ => 0.0,
-        };
-        let fractions = [
-            0.005, 0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7,
-            0.8, 0.9, 0.95,
-        ];
-        let mut depths = Vec::new();
-        let mut forces = Vec::new();
-        let mut radii = Vec::new();
-        let mut growth: f64 = 1.1;
-        for f in fractions {
-            let d = f * h;
-            if d > max_depth * 1.05 && depths.len() >= 2 {
-                break;
-            }
-            let a_h = (radius * d).sqrt();
-            let extent = 2.4 * a_h * growth;
-            let dx = extent / self.spec.quality.cells_curved as f64;
-            let span = extent.max(length * 1.1) + 8.0 * h;
-            let grid = Grid {
-                n: fast_size((span / dx).ceil() as usize),
-                dx,
-            };
-            let op = LayerOperator::new(grid, h, mu_mod, nu);
-            let prof: Vec<f64> = (0..grid.len())
-                .map(|i| {
-                    let (x, y) = grid.xy(i);
-                    profile(&c.indenter, c.layer.width_mm, x, y)
-                })
-                .collect();
-            let s = normal_unknown_area(&op, &prof, d, None, tol());
-            let a = (s.area_mm2 / PI).sqrt();
-            growth = (a / a_h).max(1.0) * 1.1;
-            depths.push(d);
-            forces.push(s.force_n);
-            radii.push(a);
-        }
-        Normal::Curved {
-            depths_mm: depths,
-            forces_n: forces,
-            radii_mm: radii,
         }
     }
 
@@ -1021,110 +786,4 @@ fn interp_power(xs: &[f64], ys: &[f64], x: f64, low_exp: f64) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::{Layer, Material, PronyTerm};
-
-    fn contact(indenter: Indenter, h: f64) -> Contact {
-        Contact::new(
-            Layer {
-                width_mm: 125.0,
-                length_mm: 70.0,
-                thickness_mm: h,
-            },
-            Material {
-                youngs_modulus_mpa: 0.25,
-                poisson_ratio: 0.49,
-                prony: vec![PronyTerm {
-                    weight: 0.2,
-                    tau_s: 10.0,
-                }],
-                friction: 0.6,
-            },
-            indenter,
-        )
-        .expect("valid")
-    }
-
-    #[test]
-    fn flat_punch_force_is_the_exact_layer_stiffness() {
-        let c = contact(Indenter::FlatCircle { diameter_mm: 9.5 }, 4.2);
-        let e_star = c.material.contact_modulus_mpa();
-        let m = ContactModel::build(ModelSpec {
-            contact: c,
-            max_depth_mm: 1.0,
-            shear: false,
-            twist: false,
-            field_view_mm: None,
-            quality: Quality::default(),
-        })
-        .expect("builds");
-        let kappa = punch::layer_kappa(4.75 / 4.2, 0.49, 48);
-        let expect = 2.0 * e_star * 4.75 * 0.084 * kappa;
-        assert!((m.normal_force_n(0.084) / expect - 1.0).abs() < 1e-12);
-        assert_eq!(m.normal_force_n(-0.1), 0.0);
-    }
-
-    #[test]
-    fn sphere_table_is_stiffer_than_hertz_and_grows_its_contact() {
-        let c = contact(Indenter::Sphere { diameter_mm: 12.68 }, 4.2);
-        let e_star = c.material.contact_modulus_mpa();
-        let m = ContactModel::build(ModelSpec {
-            contact: c,
-            max_depth_mm: 2.0,
-            shear: false,
-            twist: false,
-            field_view_mm: None,
-            quality: Quality::default(),
-        })
-        .expect("builds");
-        let mut last_a = 0.0;
-        for frac in [0.02, 0.05, 0.1, 0.2, 0.4] {
-            let d: f64 = frac * 4.2;
-            let hertz = 4.0 / 3.0 * e_star * 6.34_f64.sqrt() * d.powf(1.5);
-            let ratio = m.normal_force_n(d) / hertz;
-            assert!(ratio > 1.0, "{frac}: {ratio}");
-            let a = m.contact_radius_mm(d);
-            assert!(a > last_a);
-            last_a = a;
-        }
-        // Fitted exponent over 2–20 % of thickness: stiffer than Hertz's 1.5 (spec O18 ≈
-        // 1.78 for a paraboloid; the exact sphere is a little softer).
-        let e = (m.normal_force_n(0.84) / m.normal_force_n(0.084)).ln() / 10f64.ln();
-        assert!(e > 1.6 && e < 1.85, "exponent {e}");
-    }
-
-    #[test]
-    fn flat_shear_backbone_saturates_at_mu_p_with_partial_slip_on_the_way() {
-        let c = contact(Indenter::FlatCircle { diameter_mm: 12.68 }, 4.2);
-        let mut m = ContactModel::build(ModelSpec {
-            contact: c,
-            max_depth_mm: 0.5,
-            shear: true,
-            twist: true,
-            field_view_mm: None,
-            quality: Quality::default(),
-        })
-        .expect("builds");
-        let d = 0.21;
-        let t = m.shear_table(d).expect("shear table");
-        let limit = 0.6 * m.normal_force_n(d);
-        // The grid's force differs from the exact κ by the discretisation error (≈1 %).
-        assert!(
-            (t.backbone.limit() / limit - 1.0).abs() < 0.03,
-            "{} vs {limit}",
-            t.backbone.limit()
-        );
-        assert!(
-            t.stick_fraction.iter().any(|s| *s > 0.1 && *s < 0.9),
-            "{:?}",
-            t.stick_fraction
-        );
-        assert_eq!(t.stick_fraction.last().copied(), Some(0.0));
-        let tw = m.twist_table(d).expect("twist table");
-        assert!(tw.backbone.limit() > 0.0 && tw.stick_fraction.last().copied() == Some(0.0));
-        // Scaling with depth is exact for a flat punch.
-        let t2 = m.shear_table(2.0 * d).expect("shear table");
-        assert!((t2.backbone.limit() / t.backbone.limit() - 2.0).abs() < 1e-12);
-    }
-}
+mod tests;

@@ -1,0 +1,69 @@
+//! A curved indenter's normal table: force and contact radius against depth, each depth
+//! solved on a grid adapted to its contact (Polonsky–Keer).
+
+use std::f64::consts::PI;
+
+use super::shapes::profile;
+use super::{ContactModel, Normal, tol};
+use crate::Indenter;
+use crate::operator::{Grid, LayerOperator, fast_size};
+use crate::solve::normal_unknown_area;
+
+impl ContactModel {
+    pub(super) fn curved_table(&self, max_depth: f64) -> Normal {
+        let c = &self.spec.contact;
+        let h = c.layer.thickness_mm;
+        let mu_mod = c.material.shear_modulus_mpa();
+        let nu = c.material.poisson_ratio;
+        let radius = match c.indenter {
+            Indenter::Sphere { diameter_mm } | Indenter::Cylinder { diameter_mm, .. } => {
+                diameter_mm / 2.0
+            }
+            _ => 1.0,
+        };
+        let length = match c.indenter {
+            Indenter::Cylinder { length_mm, .. } => length_mm.min(c.layer.width_mm),
+            _ => 0.0,
+        };
+        let fractions = [
+            0.005, 0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7,
+            0.8, 0.9, 0.95,
+        ];
+        let mut depths = Vec::new();
+        let mut forces = Vec::new();
+        let mut radii = Vec::new();
+        let mut growth: f64 = 1.1;
+        for f in fractions {
+            let d = f * h;
+            if d > max_depth * 1.05 && depths.len() >= 2 {
+                break;
+            }
+            let a_h = (radius * d).sqrt();
+            let extent = 2.4 * a_h * growth;
+            let dx = extent / self.spec.quality.cells_curved as f64;
+            let span = extent.max(length * 1.1) + 8.0 * h;
+            let grid = Grid {
+                n: fast_size((span / dx).ceil() as usize),
+                dx,
+            };
+            let op = LayerOperator::new(grid, h, mu_mod, nu);
+            let prof: Vec<f64> = (0..grid.len())
+                .map(|i| {
+                    let (x, y) = grid.xy(i);
+                    profile(&c.indenter, c.layer.width_mm, x, y)
+                })
+                .collect();
+            let s = normal_unknown_area(&op, &prof, d, None, tol());
+            let a = (s.area_mm2 / PI).sqrt();
+            growth = (a / a_h).max(1.0) * 1.1;
+            depths.push(d);
+            forces.push(s.force_n);
+            radii.push(a);
+        }
+        Normal::Curved {
+            depths_mm: depths,
+            forces_n: forces,
+            radii_mm: radii,
+        }
+    }
+}

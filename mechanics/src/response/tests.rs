@@ -1,0 +1,158 @@
+//! The contact model against exact results and its own invariants.
+
+use super::*;
+use crate::{Layer, Material, PronyTerm};
+
+fn contact(indenter: Indenter, h: f64) -> Contact {
+    Contact::new(
+        Layer {
+            width_mm: 125.0,
+            length_mm: 70.0,
+            thickness_mm: h,
+        },
+        Material {
+            youngs_modulus_mpa: 0.25,
+            poisson_ratio: 0.49,
+            prony: vec![PronyTerm {
+                weight: 0.2,
+                tau_s: 10.0,
+            }],
+            friction: 0.6,
+        },
+        indenter,
+    )
+    .expect("valid")
+}
+
+#[test]
+fn flat_punch_force_is_the_exact_layer_stiffness_raised_by_friction() {
+    let build = |mu: f64, shear: bool| {
+        let mut c = contact(Indenter::FlatCircle { diameter_mm: 9.5 }, 4.2);
+        c.material.friction = mu;
+        ContactModel::build(ModelSpec {
+            contact: c,
+            max_depth_mm: 1.0,
+            shear,
+            twist: false,
+            field_view_mm: None,
+            pressing_friction: true,
+            quality: Quality::default(),
+        })
+        .expect("builds")
+    };
+    let e_star = contact(Indenter::FlatCircle { diameter_mm: 9.5 }, 4.2)
+        .material
+        .contact_modulus_mpa();
+    let kappa = punch::layer_kappa(4.75 / 4.2, 0.49, 48);
+    let exact = 2.0 * e_star * 4.75 * 0.084 * kappa;
+    // Frictionless: the exact (Nyström) layer stiffness.
+    let free = build(0.0, false);
+    assert!((free.normal_force_n(0.084) / exact - 1.0).abs() < 1e-12);
+    assert_eq!(free.normal_force_n(-0.1), 0.0);
+    // μ = 0.6 sticks: the face holds the outward flow and presses ~9 % harder
+    // (`crate::pressing`; the independent check is in tests/peers).
+    let mut stuck = build(0.6, true);
+    let ratio = stuck.normal_force_n(0.084) / exact;
+    assert!(ratio > 1.07 && ratio < 1.11, "{ratio}");
+    // The slip limit is μ times the model's own Fz.
+    let (b, _) = stuck.shear_curve(0.084).expect("shear");
+    let limit = b.f.last().copied().unwrap_or(0.0);
+    assert!(
+        (limit / stuck.normal_force_n(0.084) - 0.6).abs() < 1e-9,
+        "{limit}"
+    );
+}
+
+#[test]
+fn sphere_table_is_stiffer_than_hertz_and_grows_its_contact() {
+    let c = contact(Indenter::Sphere { diameter_mm: 12.68 }, 4.2);
+    let e_star = c.material.contact_modulus_mpa();
+    let m = ContactModel::build(ModelSpec {
+        contact: c,
+        max_depth_mm: 2.0,
+        shear: false,
+        twist: false,
+        field_view_mm: None,
+        pressing_friction: false,
+        quality: Quality::default(),
+    })
+    .expect("builds");
+    let mut last_a = 0.0;
+    for frac in [0.02, 0.05, 0.1, 0.2, 0.4] {
+        let d: f64 = frac * 4.2;
+        let hertz = 4.0 / 3.0 * e_star * 6.34_f64.sqrt() * d.powf(1.5);
+        let ratio = m.normal_force_n(d) / hertz;
+        assert!(ratio > 1.0, "{frac}: {ratio}");
+        let a = m.contact_radius_mm(d);
+        assert!(a > last_a);
+        last_a = a;
+    }
+    // Fitted exponent over 2–20 % of thickness: stiffer than Hertz's 1.5 (spec O18 ≈
+    // 1.78 for a paraboloid; the exact sphere is a little softer).
+    let e = (m.normal_force_n(0.84) / m.normal_force_n(0.084)).ln() / 10f64.ln();
+    assert!(e > 1.6 && e < 1.85, "exponent {e}");
+}
+
+#[test]
+fn flat_shear_backbone_saturates_at_mu_p_with_partial_slip_on_the_way() {
+    let c = contact(Indenter::FlatCircle { diameter_mm: 12.68 }, 4.2);
+    let mut m = ContactModel::build(ModelSpec {
+        contact: c,
+        max_depth_mm: 0.5,
+        shear: true,
+        twist: true,
+        field_view_mm: None,
+        pressing_friction: false,
+        quality: Quality::default(),
+    })
+    .expect("builds");
+    let d = 0.21;
+    let t = m.shear_table(d).expect("shear table");
+    let limit = 0.6 * m.normal_force_n(d);
+    // The grid's force differs from the exact κ by the discretisation error (≈1 %).
+    assert!(
+        (t.backbone.limit() / limit - 1.0).abs() < 0.03,
+        "{} vs {limit}",
+        t.backbone.limit()
+    );
+    assert!(
+        t.stick_fraction.iter().any(|s| *s > 0.1 && *s < 0.9),
+        "{:?}",
+        t.stick_fraction
+    );
+    assert_eq!(t.stick_fraction.last().copied(), Some(0.0));
+    let tw = m.twist_table(d).expect("twist table");
+    assert!(tw.backbone.limit() > 0.0 && tw.stick_fraction.last().copied() == Some(0.0));
+    // Scaling with depth is exact for a flat punch.
+    let t2 = m.shear_table(2.0 * d).expect("shear table");
+    assert!((t2.backbone.limit() / t.backbone.limit() - 2.0).abs() < 1e-12);
+}
+
+#[test]
+fn a_sheared_flat_punch_tilts_its_pressure_forward() {
+    // The stuck punch pulls the surface along +x; through the layer's coupling the leading
+    // side is pressed harder, so the tractions on the gel have My = −arm·Fx (z into the gel)
+    // and, by symmetry, Mx = +arm·Fy. The arm of the 12.68 mm punch on the 4.2 mm box gel is
+    // 0.91 mm (0.93 at 16 cells, 0.91 at 32: the `pressing_friction` example).
+    let build = |shear: bool| {
+        ContactModel::build(ModelSpec {
+            contact: contact(Indenter::FlatCircle { diameter_mm: 12.68 }, 4.2),
+            max_depth_mm: 1.0,
+            shear,
+            twist: false,
+            field_view_mm: None,
+            pressing_friction: false,
+            quality: Quality::default(),
+        })
+        .expect("builds")
+    };
+    let m = build(true);
+    let (tx, ty) = m.tilting_moments_nmm(1.0, 0.0);
+    assert_eq!(tx, 0.0);
+    assert!(ty < -0.85 && ty > -0.97, "My per N of Fx: {ty}");
+    let (tx, ty) = m.tilting_moments_nmm(0.0, 1.0);
+    assert_eq!(ty, 0.0);
+    assert!(tx > 0.85 && tx < 0.97, "Mx per N of Fy: {tx}");
+    // No shear built: nothing asks for it, nothing is solved.
+    assert_eq!(build(false).tilting_moments_nmm(1.0, 1.0), (0.0, 0.0));
+}

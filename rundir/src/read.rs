@@ -218,3 +218,39 @@ pub struct TactileCsvRow {
 pub fn read_tactile(dir: &Path) -> Result<Vec<TactileCsvRow>, RunDirError> {
     Ok(read_optional(&dir.join("tactile.csv"))?.unwrap_or_default())
 }
+
+/// The events of `journal.jsonl` in order, each a JSON object with its `event` name. A line
+/// that does not parse is skipped: the journal is appended line by line, so a killed run can
+/// leave its last line torn, and what the writer finished stays readable.
+pub fn read_journal(dir: &Path) -> Result<Vec<serde_json::Value>, RunDirError> {
+    let path = dir.join("journal.jsonl");
+    let text = std::fs::read_to_string(&path).map_err(|e| RunDirError::Missing {
+        path: path.clone(),
+        detail: e.to_string(),
+    })?;
+    Ok(text
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v.get("event").is_some())
+        .collect())
+}
+
+#[cfg(test)]
+mod journal_tests {
+    use super::read_journal;
+
+    #[test]
+    fn a_torn_last_line_is_skipped_and_the_rest_read_in_order() {
+        let dir = tempfile::tempdir().expect("tmp");
+        std::fs::write(
+            dir.path().join("journal.jsonl"),
+            "{\"event\":\"start\",\"t_ns\":0}\n{\"event\":\"contact\",\"force\":0.2}\n{\"event\":\"ste",
+        )
+        .expect("write");
+        let events = read_journal(dir.path()).expect("read");
+        assert_eq!(events.len(), 2);
+        assert_eq!(events[1]["event"], "contact");
+        let missing = read_journal(&dir.path().join("nowhere")).expect_err("no journal there");
+        assert!(missing.to_string().contains("journal.jsonl"), "{missing}");
+    }
+}

@@ -9,7 +9,7 @@ use std::process::{Command, Stdio};
 use crate::support::{csv_rows, gelrig, load_text, root, run_virtual, shipped_text};
 
 /// Whether the Python readers are here; prints the skip line (or fails under CI).
-fn readers_available() -> bool {
+pub(crate) fn readers_available() -> bool {
     let ok = Command::new("python3")
         .args(["-c", "import mcap, mcap_ros2, pandas, pyarrow"])
         .stderr(Stdio::null())
@@ -124,7 +124,7 @@ fn a_run_recorded_as_mcap_while_it_goes_reads_back_like_its_csvs() {
 /// Reads `mcap` with the independent readers and checks it against the run's CSVs: every
 /// wrench (time, N, N·m), every frame (time, the recorded PNG's size), stage positions in
 /// SI, steps and the grasp's tactile state as JSON, attachments and metadata.
-fn check_mcap(
+pub(crate) fn check_mcap(
     dir: &std::path::Path,
     mcap: &std::path::Path,
     protocol: &str,

@@ -26,14 +26,16 @@ fn only_dir(out: &Path) -> PathBuf {
 /// Runs `name` in virtual time with `seed` (and `set`, `--set` values) and SIGKILLs it once
 /// it reports step `k`.
 fn killed_at(name: &str, seed: u64, k: u32, out: &Path) -> PathBuf {
-    killed_with(name, &[], seed, k, out)
+    killed_with(name, &[], &[], seed, k, out)
 }
 
-fn killed_with(name: &str, set: &[&str], seed: u64, k: u32, out: &Path) -> PathBuf {
+/// As [`killed_at`], with `set` (`--set` values) and `extra` arguments to `gelrig run`.
+fn killed_with(name: &str, set: &[&str], extra: &[&str], seed: u64, k: u32, out: &Path) -> PathBuf {
     let mut child = Command::new(gelrig())
         .arg("run")
         .arg(protocol(name))
         .args(set.iter().flat_map(|s| ["--set", s]))
+        .args(extra)
         .args(["--plain", "--seed", &seed.to_string(), "--out"])
         .arg(out)
         .stdout(Stdio::null())
@@ -70,9 +72,15 @@ fn resume(dir: &Path, extra: &[&str]) -> Output {
 }
 
 fn reference(name: &str, seed: u64, out: &Path) -> PathBuf {
+    reference_with(name, &[], seed, out)
+}
+
+/// As [`reference`], with more arguments to `gelrig run`.
+fn reference_with(name: &str, extra: &[&str], seed: u64, out: &Path) -> PathBuf {
     let r = Command::new(gelrig())
         .arg("run")
         .arg(protocol(name))
+        .args(extra)
         .args(["--quiet", "--seed", &seed.to_string(), "--out"])
         .arg(out)
         .output()
@@ -301,7 +309,7 @@ fn a_grasp_trial_cut_short_is_done_again_and_read_once() {
     // Three trials of six steps; killed in the second trial.
     let tmp = tempfile::tempdir().expect("tmp");
     let set = ["sequence.2.repeat.times=3"];
-    let dir = killed_with("lifting-can", &set, 5, 8, &tmp.path().join("killed"));
+    let dir = killed_with("lifting-can", &set, &[], 5, 8, &tmp.path().join("killed"));
     let rows_before = csv_rows(&dir.join("steps.csv")).len();
     assert!(rows_before >= 8, "{rows_before}");
     let r = resume(&dir, &[]);
@@ -336,4 +344,194 @@ fn a_grasp_trial_cut_short_is_done_again_and_read_once() {
         summary["trial_stats"]
     );
     assert_eq!(summary["trials"].as_array().map(Vec::len), Some(3));
+}
+
+/// The simulator's truth of a run's steps (`sim_steps.csv`), by step.
+fn sim_steps(
+    dir: &Path,
+) -> std::collections::BTreeMap<u32, std::collections::BTreeMap<String, String>> {
+    csv_rows(&dir.join("sim_steps.csv"))
+        .into_iter()
+        .map(|r| (r["step"].parse().expect("step"), r))
+        .collect()
+}
+
+#[test]
+fn a_time_scaled_run_killed_and_resumed_stands_where_the_uninterrupted_one_does() {
+    // On a scaled clock the plan notices a contact up to one loop's latency late (a third of
+    // a second of run time at ×300), so two approaches to the same surface differ by more
+    // than the creep between nominal readings: the resume must measure that jitter, keep the
+    // recorded origin, and continue with the gel where an uninterrupted run has it.
+    // `box-normal-flat` to 6 % (six steps, 3-minute settles) at ×20: about a minute a run.
+    // A faster clock makes the test a test of the machine's load: at ×200 beside seven
+    // other runs on two cores the plan looked up to 1.5 s of run time late, an approach
+    // stopped 78 µm past the surface, and the whole run stood that much deeper. The
+    // tolerance is widened to 0.1 mm so that a debug build on a loaded machine (whose loop
+    // can take tens of ms: half a second of run time) is still judged by its own jitter.
+    let scale = ["--time-scale", "20"];
+    let extra = [scale[0], scale[1], "--set", "sequence.3.stepped.to=6 %"];
+    let tmp = tempfile::tempdir().expect("tmp");
+    // Seeds and kill steps drawn once (a fixed table, so a failure reproduces); the runs of
+    // both seeds, killed and uninterrupted, go side by side (they mostly sleep).
+    let cases = [(1u64, 2u32), (2, 4)];
+    let runs: Vec<(u64, PathBuf, PathBuf)> = std::thread::scope(|s| {
+        let handles: Vec<_> = cases
+            .iter()
+            .map(|&(seed, k)| {
+                let (tmp, extra) = (tmp.path(), &extra);
+                let whole = s.spawn(move || {
+                    reference_with(
+                        "box-normal-flat",
+                        extra,
+                        seed,
+                        &tmp.join(format!("whole-{seed}")),
+                    )
+                });
+                let killed = s.spawn(move || {
+                    let dir = killed_with(
+                        "box-normal-flat",
+                        &[],
+                        extra,
+                        seed,
+                        k,
+                        &tmp.join(format!("killed-{seed}")),
+                    );
+                    let r = resume(&dir, &[scale[0], scale[1], "--origin-tolerance", "0.1"]);
+                    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+                    dir
+                });
+                (seed, killed, whole)
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|(seed, k, w)| {
+                (
+                    seed,
+                    k.join().expect("killed run"),
+                    w.join().expect("reference run"),
+                )
+            })
+            .collect()
+    });
+    let mut worst: f64 = 0.0;
+    for (seed, dir, whole) in runs {
+        let m = manifest(&dir);
+        assert_eq!(m.status, Status::Completed);
+        let from = m.resumed[0].from_step;
+        // The resume measured how late its approach could notice the contact, kept the
+        // recorded origin, and could still have told a moved surface from its jitter.
+        let journal = rundir::read::read_journal(&dir).expect("journal");
+        let recheck = journal
+            .iter()
+            .find(|e| e["event"] == "contact_rechecked")
+            .expect("contact_rechecked");
+        let (recorded, jitter) = (
+            recheck["recorded"].as_f64().expect("recorded"),
+            recheck["jitter"].as_f64().expect("jitter"),
+        );
+        assert!(
+            jitter < recheck["tolerance"].as_f64().expect("tolerance"),
+            "seed {seed}: jitter {jitter} as wide as the tolerance"
+        );
+        assert!(
+            (recheck["found"].as_f64().expect("found") - recorded).abs() <= jitter,
+            "seed {seed}: {recheck}"
+        );
+        assert_eq!(recheck["origin"].as_f64(), Some(recorded), "seed {seed}");
+        let gaps: Vec<f64> = journal
+            .iter()
+            .filter(|e| e["event"] == "contact")
+            .filter_map(|e| e["reading_gap_s"].as_f64())
+            .collect();
+        assert_eq!(
+            gaps.len(),
+            2,
+            "seed {seed}: both approaches journal their gap"
+        );
+        println!(
+            "seed {seed}: resumed at step {from}; contact re-found {:+.3} mm from the recorded origin, jitter {jitter:.4} mm (gaps {:.3} s, {:.3} s)",
+            recheck["difference"].as_f64().unwrap_or(f64::NAN),
+            gaps[0],
+            gaps[1]
+        );
+        // Every step once; each stands at the same depth below the true surface relative to
+        // its target as the first segment's steps (within a step of the stage's
+        // resolution): the resumed steps are where the run would have put them.
+        let (got, want) = (
+            csv_rows(&dir.join("steps.csv")),
+            csv_rows(&whole.join("steps.csv")),
+        );
+        assert_eq!(got.len(), want.len(), "seed {seed}: every step, once");
+        let truth = sim_steps(&dir);
+        let offset = |step: u32, target: f64| num(&truth[&step], "depth_mm") - target;
+        let first = offset(1, num(&got[0], "target"));
+        let truth_whole = sim_steps(&whole);
+        for (g, w) in got.iter().zip(&want) {
+            assert_eq!((&g["step"], &g["target"]), (&w["step"], &w["target"]));
+            let step: u32 = g["step"].parse().expect("step");
+            let target = num(g, "target");
+            assert!(
+                (offset(step, target) - first).abs() <= 0.0021,
+                "seed {seed}, step {step}: depth {} for target {target}, the run began at {first:+}",
+                num(&truth[&step], "depth_mm")
+            );
+            // Past the kill: the quasistatic force against the equilibrium at its own depth
+            // (the two runs' origins differ by their approaches' jitter), as the
+            // uninterrupted run has it — within the two window means' noise and the
+            // scaled clock's own spread (two uninterrupted runs at ×100 differ by up to
+            // 0.11 %). The step unloading to the origin is left out: lift-off.
+            let eq = num(&truth[&step], "fz_eq_n");
+            if step < from || target.abs() < 1e-9 || eq < 0.5 {
+                continue;
+            }
+            let eq_whole = num(&truth_whole[&step], "fz_eq_n");
+            let (a, b) = (num(g, "fz_n") / eq, num(w, "fz_n") / eq_whole);
+            let sigma =
+                2f64.sqrt() * num(w, "window_std") / num(w, "window_samples").sqrt() / eq_whole;
+            let tolerance = 4.0 * sigma + 0.002;
+            worst = worst.max((a - b).abs() / tolerance);
+            assert!(
+                (a - b).abs() < tolerance,
+                "seed {seed}, step {step}: resumed Fz/F_eq {a:.4} against {b:.4} uninterrupted (tolerance {tolerance:.4})"
+            );
+        }
+    }
+    println!("time-scaled resume: worst post-resume difference {worst:.2} of its tolerance");
+}
+
+#[test]
+fn a_resumed_run_goes_on_writing_run_mcap_and_it_holds_the_whole_run() {
+    // Recorded as MCAP as it goes, killed in its second trial: the resumed run's file is the
+    // whole run (the earlier segment's records first), read back by the independent reader
+    // like its CSVs.
+    let tmp = tempfile::tempdir().expect("tmp");
+    let set = ["sequence.2.repeat.times=2"];
+    let dir = killed_with(
+        "lifting-can",
+        &set,
+        &["--record", "mcap"],
+        6,
+        8,
+        &tmp.path().join("killed"),
+    );
+    let before = std::fs::metadata(dir.join("run.mcap"))
+        .expect("run.mcap")
+        .len();
+    let r = resume(&dir, &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(manifest(&dir).status, Status::Completed);
+    let after = std::fs::metadata(dir.join("run.mcap"))
+        .expect("run.mcap")
+        .len();
+    assert!(
+        after > before,
+        "{after} bytes after the resume, {before} before"
+    );
+    if !crate::export::readers_available() {
+        return;
+    }
+    let name = manifest(&dir).protocol;
+    let j = crate::export::check_mcap(&dir, &dir.join("run.mcap"), &name, "6");
+    assert_eq!(j["metadata"][0]["status"], "completed");
 }

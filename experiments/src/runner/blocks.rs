@@ -134,35 +134,37 @@ impl Exec<'_> {
         if let Some(ax) = self.rig.axes.get_mut(&axis) {
             ax.stop().await?;
         }
+        // How far past the crossing the stage can have crept: from the reading before the
+        // one that crossed to the stop (a scaled clock's loop latency, a slow reader on a
+        // bench), and never less than the plan's reading period.
+        let nominal_s = self
+            .monitor
+            .as_ref()
+            .map_or(0.0, |m| m.reading_period_ns() as f64 * 1e-9);
+        let gap_s = self.previous_latest_ns.map_or(nominal_s, |before| {
+            (self.now().saturating_sub(before) as f64 * 1e-9).max(nominal_s)
+        });
         let what = "stopping at contact".to_string();
         let deadline = self.deadline_for(axis, 0.0, speed, what);
         self.wait(&mut Until::Motion(vec![deadline])).await?;
         let found = self.position(axis).await?;
-        // How far two approaches to the same surface can disagree by themselves: the creep
-        // between two readings (the crossing is seen up to one reading late) and a step of
-        // the stage's resolution each.
-        let jitter = speed
-            * self
-                .monitor
-                .as_ref()
-                .map_or(0.0, |m| m.reading_period_ns() as f64 * 1e-9)
-            + 2.0
-                * self
-                    .rig
-                    .axes
-                    .get(&axis)
-                    .map_or(0.0, |a| a.info().resolution);
+        let resolution = self
+            .rig
+            .axes
+            .get(&axis)
+            .map_or(0.0, |a| a.info().resolution);
         let mut contact = found;
         // Inside a trial every approach finds its own contact (a grasp's is where the
         // object happens to be): only the bench's origin, outside trials, is checked.
         if self.trial == 0
             && let Some(r) = self.resume.as_mut()
-            && let Some(recorded) = r.check_origin(axis, found)?
+            && let Some((recorded, jitter)) =
+                r.check_origin(axis, found, speed, gap_s, resolution)?
         {
-            // Within the approach's own jitter the difference says nothing about the bench:
-            // the recorded origin stays, so the resumed steps go to the stage positions the
-            // run's first segment used. Beyond it (and within the tolerance) the sensor or
-            // stage has moved that much, and the depths are kept from the new contact.
+            // Within that jitter the difference says nothing about the bench: the recorded
+            // origin stays, so the resumed steps go to the stage positions the run's first
+            // segment used. Beyond it (and within the tolerance) the sensor or stage has
+            // moved that much, and the depths are kept from the new contact.
             let moved = (found - recorded).abs() > jitter + 1e-9;
             if !moved {
                 contact = recorded;
@@ -176,13 +178,19 @@ impl Exec<'_> {
                 true,
             )?;
             self.progress.note(&format!(
-                "resume: contact {} from the recorded origin (tolerance ±{}); {}",
+                "resume: contact {} from the recorded origin (the approaches' jitter {}, tolerance ±{}); {}{}",
                 fmt_value(((found - recorded) * 1e6).round() / 1e6),
+                fmt_value((jitter * 1e6).round() / 1e6),
                 fmt_value(tolerance),
                 if moved {
-                    "beyond the approach's jitter: the new contact is the origin"
+                    "beyond the jitter: the new contact is the origin"
                 } else {
-                    "within the approach's jitter: the recorded origin stays"
+                    "within the jitter: the recorded origin stays"
+                },
+                if jitter >= tolerance {
+                    "; the jitter is as wide as the tolerance, so a moved surface cannot be told from it: approach more slowly (or on a slower clock) to check the origin"
+                } else {
+                    ""
                 }
             ));
         }
@@ -199,7 +207,7 @@ impl Exec<'_> {
         self.rec.journal(
             t,
             "contact",
-            json!({ "axis": axis, "position": contact, "force": force }),
+            json!({ "axis": axis, "position": contact, "found": found, "force": force, "reading_gap_s": gap_s }),
             true,
         )?;
         self.progress.note(&format!(

@@ -43,6 +43,10 @@ pub(super) struct Exec<'a> {
     pub(super) window: VecDeque<(u64, Wrench, u32)>,
     /// The newest tared sample, recorded or not (contact detection uses every reading).
     pub(super) latest: Option<(u64, Wrench)>,
+    /// The time of the newest sample the plan had before `latest`'s batch, ns: with it, how
+    /// late the plan can have noticed a threshold crossed (a scaled clock's loop latency, a
+    /// slow reader).
+    pub(super) previous_latest_ns: Option<u64>,
     pub(super) keep_ns: u64,
     /// What the run has learned of the gel's relaxation (adaptive settling).
     pub(super) gel: super::adaptive::GelMemory,
@@ -114,6 +118,7 @@ impl<'a> Exec<'a> {
             trial: 0,
             window: VecDeque::new(),
             latest: None,
+            previous_latest_ns: None,
             keep_ns: 0,
             gel: Default::default(),
             step_saturated: false,
@@ -171,6 +176,7 @@ impl<'a> Exec<'a> {
             return Ok(false);
         }
         let stream_on = self.active.force_hz.is_some();
+        self.previous_latest_ns = self.latest.map(|(t, _)| t);
         for r in readings {
             let s = r.sample;
             let w = s.wrench.minus(&self.tare);

@@ -255,8 +255,13 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
             rec
         }
     };
-    if req.record_mcap {
-        rec.record_mcap(&loaded.rig_text)?;
+    // A resumed run goes on writing `run.mcap` if its first segment did (or if asked).
+    match &req.resume {
+        Some(r) if req.record_mcap || r.dir.join("run.mcap").is_file() => {
+            rec.record_mcap_resumed(&loaded.rig_text)?;
+        }
+        None if req.record_mcap => rec.record_mcap(&loaded.rig_text)?,
+        _ => {}
     }
     let progress = Progress::new(
         req.progress,

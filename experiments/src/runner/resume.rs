@@ -53,6 +53,9 @@ pub struct Resume {
     skipped_trials: BTreeSet<u32>,
     /// Origins the run recorded, by axis name.
     origins: BTreeMap<String, f64>,
+    /// How late each recorded origin's approach can have noticed its contact, s (the
+    /// journal's `contact` event; runs from before it was journaled have none).
+    approach_gaps_s: BTreeMap<String, f64>,
     /// How far the re-found contact may be from the recorded origin, axis unit.
     pub origin_tolerance: f64,
     /// The segment's start on the run's timebase, ns.
@@ -185,6 +188,7 @@ impl Resume {
             replay,
             resettle,
             skipped_trials,
+            approach_gaps_s: approach_gaps_s(dir, &manifest.origins),
             origins: manifest.origins.clone(),
             origin_tolerance,
             t_start_ns: last_ns + GAP_NS,
@@ -247,20 +251,64 @@ impl Resume {
     }
 
     /// Checks the first contact re-found on an axis, outside trials, against the origin the
-    /// run recorded (later approaches set their own).
-    pub(super) fn check_origin(&mut self, axis: AxisRole, found: f64) -> Result<Option<f64>, Stop> {
+    /// run recorded (later approaches set their own). The re-finding approach crept at
+    /// `speed` for up to `gap_s` past the crossing before it stopped, on a stage of
+    /// `resolution`: with the recorded approach's own delay (the journal's `reading_gap_s`)
+    /// they make the jitter two approaches to an unmoved surface show. Gives the recorded
+    /// origin and that jitter.
+    pub(super) fn check_origin(
+        &mut self,
+        axis: AxisRole,
+        found: f64,
+        speed: f64,
+        gap_s: f64,
+        resolution: f64,
+    ) -> Result<Option<(f64, f64)>, Stop> {
         let Some(recorded) = self.origins.remove(axis.name()) else {
             return Ok(None);
         };
+        let recorded_gap_s = self.approach_gaps_s.remove(axis.name()).unwrap_or(0.0);
+        // Each approach stops up to its own creep past the crossing, and on a step of the
+        // stage's resolution.
+        let jitter = speed * gap_s.max(recorded_gap_s) + 2.0 * resolution;
         let off = found - recorded;
         if off.abs() > self.origin_tolerance {
+            let why = if off.abs() <= jitter {
+                format!(
+                    "the two approaches can differ by {jitter:.4} by themselves (the stage creeps {speed} per s for up to {:.3} s before the plan sees the force cross), more than the tolerance, so a moved bench cannot be told apart; fix: approach more slowly, or resume on a slower clock (`--time-scale`), or pass a wider --origin-tolerance",
+                    gap_s.max(recorded_gap_s)
+                )
+            } else {
+                "the sensor, indenter or stage has moved, and the recorded depths would not hold; fix: start a new run, or pass --origin-tolerance if the shift is known to be harmless".to_string()
+            };
             return Err(Stop::Resume(format!(
-                "contact on the {axis} axis found at {found:.4}, {off:+.4} from the run's recorded origin {recorded:.4} (tolerance ±{}): the sensor, indenter or stage has moved, and the recorded depths would not hold; fix: start a new run, or pass --origin-tolerance if the shift is known to be harmless",
+                "contact on the {axis} axis found at {found:.4}, {off:+.4} from the run's recorded origin {recorded:.4} (tolerance ±{}): {why}",
                 self.origin_tolerance
             )));
         }
-        Ok(Some(recorded))
+        Ok(Some((recorded, jitter)))
     }
+}
+
+/// How late the approach behind each recorded origin can have noticed its contact, s: the
+/// `reading_gap_s` of the journal's last `contact` event on that axis at that origin.
+fn approach_gaps_s(dir: &Path, origins: &BTreeMap<String, f64>) -> BTreeMap<String, f64> {
+    let journal = rundir::read::read_journal(dir).unwrap_or_default();
+    origins
+        .iter()
+        .filter_map(|(axis, &origin)| {
+            let gap = journal.iter().rev().find_map(|e| {
+                (e["event"] == "contact"
+                    && e["axis"] == axis.as_str()
+                    && e["position"]
+                        .as_f64()
+                        .is_some_and(|p| (p - origin).abs() < 1e-9))
+                .then(|| e["reading_gap_s"].as_f64())
+                .flatten()
+            })?;
+            Some((axis.clone(), gap))
+        })
+        .collect()
 }
 
 impl Exec<'_> {

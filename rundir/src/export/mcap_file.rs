@@ -102,10 +102,56 @@ pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> 
     let m = |e: mcap::McapError| werr(e.to_string());
     let file = File::create(out).map_err(|e| werr(e.to_string()))?;
     let mut w = Ros2Mcap::create(BufWriter::new(file)).map_err(m)?;
+    write_records(run_dir, &mut w).map_err(|e| match e {
+        RecordsError::Read(e) => e.into(),
+        RecordsError::Mcap(e) => m(e),
+    })?;
+    // The run's own files, and what it was.
+    for name in ["protocol.yaml", "rig.yaml", "run.yaml"] {
+        if let Ok(bytes) = std::fs::read(run_dir.join(name)) {
+            w.attach(name, bytes).map_err(m)?;
+        }
+    }
+    if let Ok(manifest) = crate::write::read_manifest(run_dir) {
+        w.run_metadata(manifest.headline()).map_err(m)?;
+    }
+    let messages = w.finish().map_err(m)?;
+    Ok(Exported {
+        path: out.to_path_buf(),
+        messages,
+    })
+}
 
+/// Why the run's records could not be written as MCAP messages.
+pub(crate) enum RecordsError {
+    /// A table or frame of the run could not be read.
+    Read(RunDirError),
+    /// The MCAP writer failed.
+    Mcap(mcap::McapError),
+}
+
+impl From<RunDirError> for RecordsError {
+    fn from(e: RunDirError) -> Self {
+        RecordsError::Read(e)
+    }
+}
+
+impl From<mcap::McapError> for RecordsError {
+    fn from(e: mcap::McapError) -> Self {
+        RecordsError::Mcap(e)
+    }
+}
+
+/// Writes every record of `run_dir` as it stands (force, frames, markers, stage positions,
+/// steps, tactile states) to `w`: the export's messages, and what a resumed run writes
+/// first when it records `run.mcap` as it goes.
+pub(crate) fn write_records<W: std::io::Write + std::io::Seek>(
+    run_dir: &Path,
+    w: &mut Ros2Mcap<W>,
+) -> Result<(), RecordsError> {
     for r in read_optional::<ForceRow>(&run_dir.join("force.csv"))?.unwrap_or_default() {
         let v = [r.fx_n, r.fy_n, r.fz_n, r.tx_nmm, r.ty_nmm, r.tz_nmm];
-        w.wrench(r.t_ns, v).map_err(m)?;
+        w.wrench(r.t_ns, v)?;
     }
     // Frames: the PNG bytes as recorded.
     let frames: Vec<FrameFileRow> = read_optional(&run_dir.join("frames.csv"))?.unwrap_or_default();
@@ -115,7 +161,7 @@ pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> 
             path: path.clone(),
             detail: format!("frame {}: {e}", f.frame),
         })?;
-        w.png(f.t_ns, &bytes).map_err(m)?;
+        w.png(f.t_ns, &bytes)?;
     }
     // Markers, where the run was tracked: each frame's displacement lines at its time.
     let markers: Vec<MarkerRow> = read_optional(&run_dir.join("markers.csv"))?.unwrap_or_default();
@@ -128,15 +174,14 @@ pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> 
             .map(|r| [r.x_px - r.dx_px, r.y_px - r.dy_px, r.dx_px, r.dy_px])
             .collect();
         let t = time_of.get(&frame).copied().unwrap_or(0);
-        w.markers(t, frame, &lines).map_err(m)?;
+        w.markers(t, frame, &lines)?;
     }
     // Stage positions, SI: m for linear axes, rad for rotary ones.
     let rig_yaml = std::fs::read_to_string(run_dir.join("rig.yaml")).unwrap_or_default();
     let rotary = rotary_axes(&rig_yaml);
     for r in read_optional::<AxesRow>(&run_dir.join("axes.csv"))?.unwrap_or_default() {
         if let Some(p) = r.position {
-            w.joint(r.t_ns, &r.axis, si(p, rotary.contains(&r.axis)))
-                .map_err(m)?;
+            w.joint(r.t_ns, &r.axis, si(p, rotary.contains(&r.axis)))?;
         }
     }
     // Steps at their ends and grasp frames' tactile state, each row as JSON.
@@ -155,21 +200,8 @@ pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> 
                 .and_then(|v| v.parse::<u64>().ok())
                 .unwrap_or(0);
             let text = serde_json::Value::Object(json_row(row)).to_string();
-            w.json(topic, t, &text).map_err(m)?;
+            w.json(topic, t, &text)?;
         }
     }
-    // The run's own files, and what it was.
-    for name in ["protocol.yaml", "rig.yaml", "run.yaml"] {
-        if let Ok(bytes) = std::fs::read(run_dir.join(name)) {
-            w.attach(name, bytes).map_err(m)?;
-        }
-    }
-    if let Ok(manifest) = crate::write::read_manifest(run_dir) {
-        w.run_metadata(manifest.headline()).map_err(m)?;
-    }
-    let messages = w.finish().map_err(m)?;
-    Ok(Exported {
-        path: out.to_path_buf(),
-        messages,
-    })
+    Ok(())
 }

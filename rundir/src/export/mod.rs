@@ -25,4 +25,5 @@ mod mcap_file;
 pub mod parquet_tables;
 
 pub use mcap_file::{ExportError, Exported, export_mcap};
+pub(crate) use mcap_file::{RecordsError, write_records};
 pub use parquet_tables::{ParquetExport, export_parquet};

@@ -7,7 +7,9 @@
 //! MCAP file, and the run says so (a warning naming `gelrig export`, which rebuilds the file
 //! from the CSVs). A run killed before its end leaves a file without its summary section;
 //! MCAP readers read such a file's complete chunks in streaming mode, and the export rebuilds
-//! a whole one.
+//! a whole one. A resumed run that records it starts the file afresh with every record its
+//! directory already holds (an MCAP file cannot be appended to past its summary, and a
+//! killed run's has none), then goes on live.
 
 use std::fs::File;
 use std::io::BufWriter;
@@ -68,6 +70,22 @@ impl LiveMcap {
         {
             *failed = Some(e.to_string());
             *w = None;
+        }
+    }
+
+    /// Writes what `dir` already holds (a resumed run's earlier segments, read back from
+    /// the CSVs and frames) before anything new: the file a resumed run writes as it goes is
+    /// then the whole run, as `gelrig export` would write it.
+    pub(super) fn write_earlier(&self, dir: &Path) {
+        let mut s = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(writer) = s.w.as_mut()
+            && let Err(e) = crate::export::write_records(dir, writer)
+        {
+            s.failed = Some(match e {
+                crate::export::RecordsError::Read(e) => format!("the earlier segments: {e}"),
+                crate::export::RecordsError::Mcap(e) => e.to_string(),
+            });
+            s.w = None;
         }
     }
 

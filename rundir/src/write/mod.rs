@@ -202,6 +202,16 @@ impl Recorder {
         Ok(())
     }
 
+    /// As [`Self::record_mcap`] for a resumed run: `run.mcap` is written afresh, first with
+    /// every record the directory holds from the earlier segments, then as the run goes.
+    /// Before any new data.
+    pub fn record_mcap_resumed(&mut self, rig_yaml: &str) -> Result<(), RecordError> {
+        let m = mcap_live::LiveMcap::create(&self.dir.join("run.mcap"), rig_yaml)?;
+        m.write_earlier(&self.dir);
+        self.mcap = Some(m);
+        Ok(())
+    }
+
     /// Why `run.mcap` stopped being written, once (the CSVs go on).
     pub fn mcap_failure(&self) -> Option<String> {
         self.mcap

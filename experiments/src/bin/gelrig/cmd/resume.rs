@@ -16,6 +16,11 @@ pub(crate) struct Cmd {
     /// approached axis's unit (mm for a linear stage); beyond it the resume is refused.
     #[arg(long, value_name = "DISTANCE", default_value_t = 0.02)]
     origin_tolerance: f64,
+    /// Also write the run as it goes in another format: `mcap` writes `run.mcap` (the whole
+    /// run: the earlier segments first). A run whose first segment wrote it goes on
+    /// writing it without this.
+    #[arg(long, value_name = "FORMAT", value_parser = ["mcap"])]
+    record: Option<String>,
     #[command(flatten)]
     opts: RunOpts,
 }
@@ -77,7 +82,7 @@ impl Cmd {
             Target {
                 out: dir,
                 seed,
-                record_mcap: false,
+                record_mcap: self.record.as_deref() == Some("mcap"),
                 resume: Some(resume),
             },
             &loaded,

@@ -11,8 +11,10 @@
 //!
 //!   a_slow = w_slow · (H + F∞ − F∞ₖ₋₁),  H = Σ_{j<k} ΔF∞ⱼ e^{−(t₀ − tⱼ)/τ_slow},
 //!
-//! with w_slow learned from the step that taught the time constants (its amplitude over its
-//! own load change). The record then fits F∞ and the faster amplitudes only:
+//! with w_slow learned from the records that taught the time constants (each one's amplitude
+//! over its own load change, pooled; [`crate::settle_rules::GelMemory`] learns it again
+//! whenever the time constants move). The record then fits F∞ and the faster amplitudes
+//! only:
 //!
 //!   F(t) − w (H − F∞ₖ₋₁) e^{−t/τ} = F∞ (1 + w e^{−t/τ}) + Σ_{fast} aᵢ e^{−t/τᵢ}.
 //!

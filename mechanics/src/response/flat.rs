@@ -1,8 +1,11 @@
 //! Pressing with friction: a flat punch's coupled solve, the one-way friction holding any
 //! pressed contact, and the tilting arm of a flat punch's shear ([`crate::pressing`]).
 
+use super::shapes::matched_dx;
 use super::tol;
-use crate::operator::{Compliance, LayerOperator};
+use crate::Indenter;
+
+use crate::operator::{Compliance, Grid, LayerOperator};
 use crate::pressing::{Pressing, PressingSolution, pressing};
 use crate::solve::{Tangential, TangentialSolution, normal_known_area, tangential};
 
@@ -102,4 +105,32 @@ pub(super) fn tilt_arm(op: &LayerOperator, mask: &[bool], axis: usize) -> f64 {
     } else {
         0.0
     }
+}
+
+/// The layer operator for a flat punch's face with `cells` cells across its footprint (the
+/// cell size matched so the discretised face has the face's area).
+pub(super) fn operator(
+    indenter: &Indenter,
+    h: f64,
+    mu_mod: f64,
+    nu: f64,
+    cells: usize,
+) -> LayerOperator {
+    let extent = indenter.footprint_mm();
+    let dx = extent / cells as f64;
+    let n = LayerOperator::period_for(extent, h, dx);
+    LayerOperator::new(
+        Grid {
+            n,
+            dx: matched_dx(indenter, n, dx),
+        },
+        h,
+        mu_mod,
+        nu,
+    )
+}
+
+/// The frictionless force of the face `mask` pressed 1 mm on `op`, N.
+pub(super) fn frictionless_force(op: &LayerOperator, mask: &[bool]) -> f64 {
+    normal_known_area(op, mask, &vec![1.0; op.grid().len()], tol()).force_n
 }

@@ -30,7 +30,7 @@ use std::f64::consts::PI;
 use crate::contact::Contact;
 use crate::friction::Backbone;
 use crate::operator::{Compliance, Grid, LayerOperator, fast_size};
-use crate::solve::{Tangential, Tolerance, normal_known_area, normal_unknown_area, tangential};
+use crate::solve::{Tangential, Tolerance, normal_unknown_area, tangential};
 use crate::{Indenter, MechanicsError, punch};
 
 mod curved;
@@ -72,6 +72,9 @@ pub struct Quality {
     pub cells_curved: usize,
     /// Cells per side of the field grid.
     pub field_cells: usize,
+    /// A non-circular flat punch's force extrapolated across two grids (`cells_flat` and
+    /// twice it); off, the `cells_flat` grid's own force (what the extrapolation corrects).
+    pub extrapolate_flat: bool,
 }
 
 impl Default for Quality {
@@ -80,6 +83,7 @@ impl Default for Quality {
             cells_flat: 32,
             cells_curved: 16,
             field_cells: 256,
+            extrapolate_flat: true,
         }
     }
 }
@@ -309,19 +313,8 @@ impl ContactModel {
         if c.indenter.is_flat() {
             // The tangential tables live on a grid with `cells_flat` cells across the punch;
             // the normal pressure for fields is solved on the field grid when there is one.
-            let op = {
-                let dx = extent / spec.quality.cells_flat as f64;
-                let n = LayerOperator::period_for(extent, h, dx);
-                LayerOperator::new(
-                    Grid {
-                        n,
-                        dx: matched_dx(&c.indenter, n, dx),
-                    },
-                    h,
-                    mu_mod,
-                    nu,
-                )
-            };
+            let flat_op = |cells| flat::operator(&c.indenter, h, mu_mod, nu, cells);
+            let op = flat_op(spec.quality.cells_flat);
             let grid = op.grid();
             let mask = face_mask(&c.indenter, grid);
             // Pressed with friction: the face holds the gel that the layer's coupling pushes
@@ -329,6 +322,22 @@ impl ContactModel {
             // the friction found on that pressure one way.
             let s = flat_pressing(&op, &mask, c.material.friction, spec.pressing_friction);
             let mut force = s.force_n;
+            let free_on = flat::frictionless_force;
+            if spec.quality.extrapolate_flat && !matches!(c.indenter, Indenter::FlatCircle { .. }) {
+                // No exact κ for other faces: the frictionless force is extrapolated across
+                // grids (Richardson, first order: the face's edge singularity makes the
+                // force converge as the cell size), F ≈ 2 F(2n) − F(n), times the grid's
+                // ratio of the pressed-with-friction force to its own frictionless one, as
+                // for a circle. At 32 cells the grid alone was 2.8 % (ellipse), 3.8 %
+                // (rectangle) and 3.5 % (triangle) below the converged force; extrapolated,
+                // within 0.5 % (BENCHMARKS.md, "Non-circular punches";
+                // `examples/flat_shape_convergence.rs`).
+                let fine = flat_op(2 * spec.quality.cells_flat);
+                let fine_mask = face_mask(&c.indenter, fine.grid());
+                let coarse = free_on(&op, &mask);
+                let extrapolated = 2.0 * free_on(&fine, &fine_mask) - coarse;
+                force = extrapolated * s.force_n / coarse;
+            }
             if let Indenter::FlatCircle { diameter_mm } = c.indenter {
                 // Exact stiffening (Nyström) for the frictionless force, times the grid's
                 // ratio of the pressed-with-friction force to its own frictionless one (the
@@ -336,7 +345,7 @@ impl ContactModel {
                 // at 16, 32, 48 cells on the 9.5 mm box punch); the grid gives the shape.
                 let a = diameter_mm / 2.0;
                 let kappa = punch::layer_kappa(a / h, nu, 48);
-                let free = normal_known_area(&op, &mask, &vec![1.0; grid.len()], tol()).force_n;
+                let free = free_on(&op, &mask);
                 force = 2.0 * c.material.contact_modulus_mpa() * a * kappa * s.force_n / free;
             }
             // Tangential forces come from the same grid pressure: scaled as the normal force

@@ -156,3 +156,56 @@ fn a_sheared_flat_punch_tilts_its_pressure_forward() {
     // No shear built: nothing asks for it, nothing is solved.
     assert_eq!(build(false).tilting_moments_nmm(1.0, 1.0), (0.0, 0.0));
 }
+
+#[test]
+fn a_non_circular_punchs_force_is_extrapolated_across_grids_to_within_a_percent() {
+    let force = |indenter: Indenter, cells_flat: usize, extrapolate_flat: bool| {
+        let c = contact(indenter, 4.2);
+        ContactModel::build(ModelSpec {
+            contact: c,
+            max_depth_mm: 0.84,
+            shear: false,
+            twist: false,
+            field_view_mm: None,
+            pressing_friction: false,
+            quality: Quality {
+                cells_flat,
+                extrapolate_flat,
+                ..Quality::default()
+            },
+        })
+        .expect("builds")
+        .normal_force_n(1.0)
+    };
+    // A circle taken through the grid path (an ellipse with equal axes) against the exact
+    // κ: the 32-cell grid alone is 1.8 % low, extrapolated with 64 cells 0.1 %.
+    let c = contact(Indenter::FlatCircle { diameter_mm: 9.5 }, 4.2);
+    let a = 4.75;
+    let exact = 2.0
+        * c.material.contact_modulus_mpa()
+        * a
+        * crate::punch::layer_kappa(a / 4.2, c.material.poisson_ratio, 48);
+    let round = Indenter::FlatEllipse {
+        major_mm: 9.5,
+        minor_mm: 9.5,
+    };
+    let (grid, extrapolated) = (force(round, 32, false), force(round, 32, true));
+    assert!(grid < 0.99 * exact, "grid {grid} vs exact {exact}");
+    assert!(
+        (extrapolated / exact - 1.0).abs() < 0.005,
+        "extrapolated {extrapolated} vs exact {exact}"
+    );
+    // The rectangle (corners converge slowest): at 32 cells within 1 % of the same
+    // extrapolation from grids twice as fine; the 32-cell grid alone is 3.8 % low.
+    let rectangle = Indenter::FlatRectangle {
+        width_mm: 12.0,
+        length_mm: 6.0,
+    };
+    let (grid, at_32, at_64) = (
+        force(rectangle, 32, false),
+        force(rectangle, 32, true),
+        force(rectangle, 64, true),
+    );
+    assert!(grid < 0.97 * at_64, "grid {grid} vs {at_64}");
+    assert!((at_32 / at_64 - 1.0).abs() < 0.01, "{at_32} vs {at_64}");
+}

@@ -140,13 +140,14 @@ fn sweep(prob: &Pressing<'_>, start: Option<[Vec<f64>; 3]>) -> PressingSolution 
     };
     let mut force = p.iter().sum::<f64>() * g.area();
     let stop = prob.tol.rel.sqrt().max(1e-9);
+    let max_sweeps = prob.tol.max_iter.clamp(1, 200);
     let (mut sweeps, mut converged) = (0, false);
-    let mut last_t = None;
     let mut cz = vec![0.0; len];
     let mut target = vec![0.0; len];
     let (mut sx, mut sy) = (vec![0.0; len], vec![0.0; len]);
-    for sweep in 1..=prob.tol.max_iter.clamp(1, 200) {
-        sweeps = sweep;
+    // At least one sweep runs, and the last one's friction is the answer's.
+    let t = loop {
+        sweeps += 1;
         prob.op.tangential_from_normal(&p, &mut sx, &mut sy);
         let t = tangential(&Tangential {
             op: prob.op,
@@ -160,7 +161,6 @@ fn sweep(prob: &Pressing<'_>, start: Option<[Vec<f64>; 3]>) -> PressingSolution 
         });
         qx.copy_from_slice(&t.qx);
         qy.copy_from_slice(&t.qy);
-        last_t = Some(t);
         prob.op.normal_from_tangential(&qx, &qy, &mut cz);
         for i in 0..len {
             target[i] = prob.uz[i] - cz[i];
@@ -178,21 +178,11 @@ fn sweep(prob: &Pressing<'_>, start: Option<[Vec<f64>; 3]>) -> PressingSolution 
         force = new_force;
         if change <= stop || prob.mu == 0.0 {
             converged = true;
-            break;
+            break t;
         }
-    }
-    let t = match last_t {
-        Some(t) => t,
-        None => tangential(&Tangential {
-            op: prob.op,
-            p: &p,
-            mu: prob.mu,
-            target: prob.target,
-            source: None,
-            x_only: false,
-            initial: None,
-            tol: prob.tol,
-        }),
+        if sweeps >= max_sweeps {
+            break t;
+        }
     };
     PressingSolution {
         p,

@@ -67,10 +67,11 @@ pub(super) fn held_by_friction(
     (t, (sx, sy))
 }
 
-/// The tilting arm of a stuck flat punch sheared along `axis` (0: x, 1: y), mm: pressed
-/// 1 mm and held level, then shifted 1 µm; the change of the pressure's first moment over
-/// the change of the tangential force.
-pub(super) fn tilt_arm(op: &LayerOperator, mask: &[bool], axis: usize) -> f64 {
+/// The tilting arms of a stuck flat punch sheared along x and along y, mm: pressed 1 mm and
+/// held level, then shifted 1 µm along each axis; the change of the pressure's first moment
+/// about that axis over the change of the tangential force. The unshifted state is solved
+/// once for both.
+pub(super) fn tilt_arms(op: &LayerOperator, mask: &[bool]) -> (f64, f64) {
     let g = op.grid();
     let zero = vec![0.0; g.len()];
     let shift = vec![1e-3; g.len()];
@@ -84,7 +85,7 @@ pub(super) fn tilt_arm(op: &LayerOperator, mask: &[bool], axis: usize) -> f64 {
             tol: tol(),
         })
     };
-    let moment = |s: &PressingSolution| -> (f64, f64) {
+    let moment = |s: &PressingSolution, axis: usize| -> (f64, f64) {
         let m = (0..g.len())
             .map(|i| {
                 let (x, y) = g.xy(i);
@@ -94,17 +95,16 @@ pub(super) fn tilt_arm(op: &LayerOperator, mask: &[bool], axis: usize) -> f64 {
             * g.area();
         (m, if axis == 0 { s.t.fx_n } else { s.t.fy_n })
     };
-    let (m0, f0) = moment(&solve(&zero, &zero));
-    let (m1, f1) = if axis == 0 {
-        moment(&solve(&shift, &zero))
-    } else {
-        moment(&solve(&zero, &shift))
+    let base = solve(&zero, &zero);
+    let arm = |shifted: &PressingSolution, axis: usize| {
+        let ((m0, f0), (m1, f1)) = (moment(&base, axis), moment(shifted, axis));
+        if (f1 - f0).abs() > 0.0 {
+            (m1 - m0) / (f1 - f0)
+        } else {
+            0.0
+        }
     };
-    if (f1 - f0).abs() > 0.0 {
-        (m1 - m0) / (f1 - f0)
-    } else {
-        0.0
-    }
+    (arm(&solve(&shift, &zero), 0), arm(&solve(&zero, &shift), 1))
 }
 
 /// The layer operator for a flat punch's face with `cells` cells across its footprint (the

@@ -38,7 +38,7 @@ mod flat;
 mod shapes;
 mod tangential;
 
-use flat::{flat_pressing, tilt_arm};
+use flat::{flat_pressing, tilt_arms};
 use shapes::{face_mask, matched_dx, profile};
 
 /// What the model must be able to answer.
@@ -353,7 +353,7 @@ impl ContactModel {
             // on the 9.5 mm punch).
             let calibration = force / s.force_n;
             if spec.shear {
-                model.tilt_arms_mm = (tilt_arm(&op, &mask, 0), tilt_arm(&op, &mask, 1));
+                model.tilt_arms_mm = tilt_arms(&op, &mask);
             }
             model.pressing.insert(0, (s.t.qx, s.t.qy, grid));
             model.normal = Normal::Flat {

@@ -10,8 +10,10 @@
 //!    over blocks, per channel); the change of a block is the length of its colour vector
 //!    from that median. Blocks wholly under a marker take their neighbours' mean; a 3×3
 //!    binomial smooths the map.
-//! 2. **Is there contact?** Only if the largest change exceeds `noise_factor` times the
-//!    99th percentile of the same map on the reference frame (its noise and marker rims).
+//! 2. **Is there contact?** Only if the largest change exceeds the noise floor
+//!    (`noise_factor` times half the reference's median pixel noise, at least `min_change`)
+//!    and the blocks above that floor connected to it cover at least two markers: noise
+//!    lifts single blocks, a contact tilts a region.
 //! 3. **Seed.** The blocks connected to the peak with more than `seed_fraction` of it,
 //!    holes filled: a sphere's centre does not tilt, and a flat punch's face does not either.
 //!    The reference's own residual (its background model's error, per block) is subtracted
@@ -39,7 +41,7 @@ pub struct ContactParams {
     pub edge_fraction: f64,
     /// Blocks above this share of the peak change seed the region.
     pub seed_fraction: f64,
-    /// The peak change must exceed this multiple of the reference's 99th percentile.
+    /// The peak change must exceed this multiple of half the reference's median pixel noise.
     pub noise_factor: f64,
     /// Rays cast from the centroid to find the edge.
     pub rays: usize,
@@ -203,6 +205,22 @@ impl ContactFinder {
         };
         if peak < self.floor {
             self.refresh_base();
+            return Ok(None);
+        }
+        // A contact tilts the gel over a region; the camera's noise lifts single blocks. On
+        // the simulated portable sensor (1.1 % pixel noise) an untouched gel's peak reaches
+        // 0.025–0.031 against a floor of 0.022, but only 4–7 blocks around it stand above
+        // the floor, while a lifting can's gentle contact (peak 0.044–0.05) lifts 800–2 300:
+        // fewer than two markers' worth of blocks above the floor is noise.
+        self.marks.fill(UNSEEN);
+        let floor = self.floor;
+        self.flood(&[peak_at], SEED, |v, m| m == UNSEEN && v >= floor);
+        let above = self.marks.iter().filter(|m| **m == SEED).count() as f64;
+        let marker_blocks =
+            std::f64::consts::PI * reference.radius_px().powi(2) / (self.block * self.block) as f64;
+        // The base is not refreshed from such a frame: a contact that is only beginning
+        // looks the same, and must not be taken into the untouched gel's colours.
+        if above < 2.0 * marker_blocks {
             return Ok(None);
         }
         self.seed(peak_at, peak * self.params.seed_fraction as f32);
@@ -640,6 +658,90 @@ fn polygon_area_centroid(p: &[[f64; 2]]) -> (f64, [f64; 2]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tracking::{Reference as Ref, TrackParams};
+
+    /// A 240×180 gel: a smooth coloured background, dark markers on a 20 px grid, pixel
+    /// noise of σ ≈ 1.1 % (the simulated camera's), and `change(x, y)` (relative) added.
+    fn gel(seed: u64, change: impl Fn(f64, f64) -> f64) -> Vec<u8> {
+        let (w, h) = (240usize, 180usize);
+        let mut state = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let mut gauss = move || {
+            // Sum of four uniforms on ±½ (variance ⅓), scaled to σ = 1.
+            let mut acc = 0.0;
+            for _ in 0..4 {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                acc += (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            }
+            acc * 3f64.sqrt()
+        };
+        let mut rgb = vec![0u8; w * h * 3];
+        for y in 0..h {
+            for x in 0..w {
+                let (mx, my) = ((x % 20) as f64 - 10.0, (y % 20) as f64 - 10.0);
+                let marker = mx * mx + my * my < 16.0;
+                let k = 1.0 + change(x as f64, y as f64);
+                for c in 0..3 {
+                    let bg = 150.0 + 30.0 * c as f64 + 20.0 * (x as f64 / w as f64);
+                    let v = if marker {
+                        25.0
+                    } else {
+                        bg * k * (1.0 + 0.011 * gauss())
+                    };
+                    rgb[3 * (y * w + x) + c] = v.round().clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+        rgb
+    }
+
+    fn finder_on(reference: &[u8]) -> (Ref, ContactFinder) {
+        let view = RgbView::new(240, 180, reference).expect("size");
+        let r = Ref::new(view, &TrackParams::default()).expect("reference");
+        let f = ContactFinder::new(view, &r, ContactParams::default()).expect("finder");
+        (r, f)
+    }
+
+    fn find(r: &Ref, f: &mut ContactFinder, frame: &[u8]) -> Option<ContactRegion> {
+        let view = RgbView::new(240, 180, frame).expect("size");
+        let mut d = crate::tracking::Detector::new(240, 180);
+        d.detect(view, r).expect("size");
+        f.find(view, r, d.smoothed()).expect("size")
+    }
+
+    /// Noise that lifts one small spot above the floor is not a contact; a broad, faint
+    /// colour change (a gently curved contact's tilt) is, though its peak is lower.
+    #[test]
+    fn a_noise_spike_is_not_a_contact_and_a_faint_broad_tilt_is() {
+        let (r, mut f) = finder_on(&gel(1, |_, _| 0.0));
+        // A 4 px spot lifting the map to about 1.4 × the floor, the rest of it at 0.4 × (as
+        // on the simulated portable sensor's untouched gel: peaks 0.025–0.031, floor 0.022).
+        let spike = gel(2, |x, y| {
+            if (x - 80.0).abs() < 2.0 && (y - 40.0).abs() < 2.0 {
+                0.2
+            } else {
+                0.0
+            }
+        });
+        assert!(
+            find(&r, &mut f, &spike).is_none(),
+            "a 4 px spike read as contact"
+        );
+        let floor = f.noise_floor();
+        let peak = f.map().0.iter().copied().fold(0.0f32, f32::max) as f64;
+        assert!(
+            peak > floor,
+            "the spike {peak} is not above the floor {floor}"
+        );
+        // A band 60 px wide across the image, its change twice the floor.
+        let k = 2.0 * floor / 3f64.sqrt();
+        let band = gel(3, |_, y| if (y - 90.0).abs() < 30.0 { k } else { 0.0 });
+        let region = find(&r, &mut f, &band).expect("a broad faint change is contact");
+        assert!(region.area_px2 > 5000.0, "{}", region.area_px2);
+    }
 
     #[test]
     fn a_square_has_its_area_and_centre() {

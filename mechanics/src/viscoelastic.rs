@@ -114,6 +114,23 @@ impl PronyState {
         self.driving = new_driving;
     }
 
+    /// The response after [`Self::advance_linear`] by `dt_s` to a new driving value f is
+    /// affine in f: returns `(gain, offset)` with value = gain·f + offset, without moving
+    /// the state. Where the driving value is not prescribed but set by a balance (the gel
+    /// in series with a sponge in a grasp, whose force must equal the gel's viscoelastic
+    /// one), the balance can then be solved for f in one pass: gain = 1 + Σ wᵢ·rampᵢ ≥ 1
+    /// keeps it monotone.
+    pub fn step_affine(&self, prony: &Prony, dt_s: f64) -> (f64, f64) {
+        let (mut gain, mut offset) = (1.0, 0.0);
+        for (h, term) in self.h.iter().zip(prony.terms()) {
+            let x = dt_s.max(0.0) / term.tau_s;
+            let ramp = if x < 1e-300 { 1.0 } else { -(-x).exp_m1() / x };
+            gain += term.weight * ramp;
+            offset += (-x).exp() * h - term.weight * ramp * self.driving;
+        }
+        (gain, offset)
+    }
+
     /// Scales the whole state (driving value and internal variables) by `factor`.
     ///
     /// Used where a contact constraint clips the response (Coulomb slip): the slipped part
@@ -300,6 +317,50 @@ mod tests {
         // A later drop of the driving value is a real drop.
         s.advance_linear(&p, 1e3, 0.8);
         assert!(s.value() < 1.0);
+    }
+
+    /// The affine step predicts what advancing does, for any history and any new value;
+    /// and a creep under a constant total (the balance it exists for) solved with it keeps
+    /// the total and drives the elastic part up to it, as g(t) dictates.
+    #[test]
+    fn the_affine_step_predicts_the_advance_and_solves_a_creep() {
+        let p = spec_series();
+        let mut s = p.state();
+        for (k, (dt, f)) in [
+            (0.0, 1.0),
+            (0.01, 1.3),
+            (2.0, 0.7),
+            (500.0, -0.2),
+            (1e-4, 2.0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let (gain, offset) = s.step_affine(&p, dt);
+            s.advance_linear(&p, dt, f);
+            let want = s.value();
+            assert!((gain * f + offset - want).abs() < 1e-12, "step {k}");
+        }
+        // Creep: hold the total at 1 (a force held): f = (1 − offset)/gain each step.
+        let mut s = p.state();
+        let mut drive = Vec::new();
+        for _ in 0..100_000 {
+            let (gain, offset) = s.step_affine(&p, 0.1);
+            let f = (1.0 - offset) / gain;
+            s.advance_linear(&p, 0.1, f);
+            assert!((s.value() - 1.0).abs() < 1e-9);
+            drive.push(f);
+        }
+        // The elastic part starts near 1/g (the 1 ms term has relaxed within the first
+        // 0.1 s ramp, so 1/(1 + 0.2 + 0.1) rather than 1/g(0) = 1/1.6) and creeps
+        // monotonically towards 1.
+        assert!(
+            drive[0] > 1.0 / p.instantaneous() && drive[0] < 0.78,
+            "{}",
+            drive[0]
+        );
+        assert!(drive.windows(2).all(|w| w[1] >= w[0] - 1e-12));
+        assert!(drive[drive.len() - 1] > 0.99 && drive[drive.len() - 1] <= 1.0 + 1e-9);
     }
 
     #[test]

@@ -377,18 +377,58 @@ fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
         (mean - nano).abs() < nano / 3.0,
         "GelSight {mean} N vs Nano17 {nano} N"
     );
-    // After the twist and the swing the reading has kept the gel's history: the can is
-    // lowered at a held grip, and the GelSight's Fz is off by about the hold's bias (within
-    // 10 points), not by what the twist's out-of-calibration frames would leave in the load
-    // history (the lowering 36 % high against the hold's 13 % before those were kept out of
-    // it and a contact the image missed for one frame stopped counting as a release).
+    // After the twist and the swing the reading has kept the gel's history: the lowering
+    // reads as it does in a control run whose twist and swing are plain holds of the same
+    // length (same seed, same timing), within 5 points of the Nano17's force. The twist's
+    // field is outside the calibration (its elastic reading swings 0–36 N at 2 Hz under a
+    // steady 5 N): taken into the load history it left the lowering 9 points higher than
+    // the control's; before negative readings were kept out of it, more. (The lowering's
+    // bias itself is not the hold's: under the held grip the gel creeps deeper, and the can,
+    // a shape the flat-punch calibration never saw, reads higher as it does.)
     let (lower_nano, lower_mean) = by_step("lower");
-    let (hold_bias, lower_bias) = (mean / nano - 1.0, lower_mean / lower_nano - 1.0);
+    let control_text = text
+        .replace(
+            "- disturb: {torque: 10 N·mm, frequency: 2 Hz, duration: 2 s, label: twist}",
+            "- hold: {duration: 2 s, label: twist}",
+        )
+        .replace(
+            "- disturb: {force: 0.3 N, frequency: 2 Hz, duration: 2 s, label: swing}",
+            "- hold: {duration: 2 s, label: swing}",
+        );
+    assert_ne!(
+        control_text, text,
+        "the shipped twist and swing blocks changed"
+    );
+    let control_dir = tmp.path().join("control");
+    std::fs::create_dir_all(&control_dir).unwrap();
+    portable_sensor()
+        .write(&control_dir.join("sensor.yaml"))
+        .unwrap();
+    let loaded = crate::support::load_text(&control_dir, &control_text).unwrap();
+    let (c, _) = run_virtual(&loaded, &control_dir, 2, None);
+    assert_eq!(
+        c.status,
+        rundir::write::Status::Completed,
+        "{:?}",
+        c.message
+    );
+    let c_rows = csv_rows(&c.dir.join("tactile.csv"));
+    let c_steps = csv_rows(&c.dir.join("steps.csv"));
+    let c_step = c_steps.iter().find(|s| s["label"] == "lower").unwrap();
+    let c_gel: Vec<f64> = c_rows
+        .iter()
+        .filter(|r| r["step"] == c_step["step"])
+        .map(|r| r["gelsight_fz_n"].parse().unwrap())
+        .collect();
+    let c_nano: f64 = c_step["fz_n"].parse().unwrap();
+    let c_mean = c_gel.iter().sum::<f64>() / c_gel.len().max(1) as f64;
+    let (bias, control_bias) = (lower_mean / lower_nano - 1.0, c_mean / c_nano - 1.0);
     assert!(
-        (lower_bias - hold_bias).abs() < 0.1,
-        "lowering: GelSight {lower_mean} N vs Nano17 {lower_nano} N ({:+.1} %), the hold {:+.1} %",
-        100.0 * lower_bias,
-        100.0 * hold_bias
+        (bias - control_bias).abs() < 0.05,
+        "lowering: GelSight {lower_mean} N vs Nano17 {lower_nano} N ({:+.1} %); without the \
+         twist and swing {c_mean} N vs {c_nano} N ({:+.1} %)",
+        100.0 * bias,
+        100.0 * control_bias
     );
     // Read live or afterwards, the same frames give the same force: `gelrig track --sensor`
     // on the run's frames (the live path once counted the image edge's border markers,

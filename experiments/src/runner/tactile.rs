@@ -98,9 +98,9 @@ impl LiveTactile {
                 }
             }
         }
-        let history = self
-            .gelsight_history
-            .get_or_insert_with(|| crate::sensor::history::LoadHistory::new(reader.memory()));
+        let history = self.gelsight_history.get_or_insert_with(|| {
+            crate::sensor::history::LoadHistory::new(reader.memory(), reader.fz_range_n())
+        });
         let region = history.region(field, seen);
         let reading = reader.read(field, region, map.as_ref()?);
         let (mut v, sd) = reader.model.predict(&reading.features);

@@ -8,12 +8,16 @@
 //!   seed 2, with the gel pressed at 2.9 px rms). Read without a region, that frame would
 //!   count as the gel letting go and restart the history from rest. While the field's rms is
 //!   at least half what it was at the last region, the last region stands in.
-//! - **a negative elastic force.** A gel pressed by an object carries no pulling normal
-//!   force: a negative elastic reading is the model outside its calibration (a twist's
-//!   field, on a sensor calibrated by pressing and shearing). In the history a negative force
-//!   counts as the contact receding (Ting 1966) and resets it, so the twist's return would
-//!   stay in it as a fresh load: `lifting-can`'s lowering read 36 % above the Nano17 instead
-//!   of the hold's 13 % (BENCHMARKS.md, "What the load history must not take in").
+//! - **an elastic force the calibration cannot vouch for.** A gel pressed by an object
+//!   carries no pulling normal force, and an elastic reading far beyond the calibrated
+//!   range is the linear model extrapolating: both are the model outside its calibration
+//!   (a twist's field, on a sensor calibrated by pressing and shearing, reads 0–36 N at
+//!   2 Hz under a steady 5 N squeeze). In the history a negative force counts as the contact
+//!   receding (Ting 1966) and resets it, and a swing up and back leaves a residue in the
+//!   slow terms, so the twist would stay in it: `lifting-can`'s lowering read 36 % above the
+//!   Nano17 instead of the hold's 13 % (BENCHMARKS.md, "What the load history must not take
+//!   in"). Such a frame's force is the last credible one: below zero, or beyond the
+//!   calibrated Fz range by more than a quarter of its span.
 
 use analysis::field::MarkerField;
 use analysis::force_sensor::memory::Memory;
@@ -25,16 +29,27 @@ pub type Region = ([f64; 2], f64);
 #[derive(Debug, Clone)]
 pub struct LoadHistory {
     memory: Option<Memory>,
+    /// The elastic forces the calibration vouches for, N.
+    credible_n: [f64; 2],
+    /// The last credible elastic force, N.
+    last_fe: f64,
     /// The last region the image showed, and the field's rms then, px.
     last_region: Option<(Region, f64)>,
 }
 
 impl LoadHistory {
     /// A gel with no history; `memory` is the sensor's ([`super::reader::Reader::memory`]),
-    /// `None` for a sensor that does not know its gel's relaxation.
-    pub fn new(memory: Option<Memory>) -> Self {
+    /// `None` for a sensor that does not know its gel's relaxation; `fz_range_n` the Fz its
+    /// calibration's force sensor saw (the sensor file's `ranges`).
+    pub fn new(memory: Option<Memory>, fz_range_n: Option<[f64; 2]>) -> Self {
+        let credible_n = match fz_range_n {
+            Some([lo, hi]) if hi > lo => [0.0, hi + 0.25 * (hi - lo)],
+            _ => [0.0, f64::INFINITY],
+        };
         Self {
             memory,
+            credible_n,
+            last_fe: 0.0,
             last_region: None,
         }
     }
@@ -51,7 +66,14 @@ impl LoadHistory {
         let Some(m) = self.memory.as_mut() else {
             return f_e;
         };
-        let f_e = f_e.max(0.0);
+        let f_e = if (self.credible_n[0]..=self.credible_n[1]).contains(&f_e) {
+            self.last_fe = f_e;
+            f_e
+        } else if region.is_some() {
+            self.last_fe
+        } else {
+            f_e.max(0.0)
+        };
         match region {
             Some(_) => m.apply(t_ns, f_e),
             None => m.release(t_ns, f_e),

@@ -19,6 +19,8 @@ pub struct Reader {
     traction: Option<(TractionKernel, TractionSettings)>,
     scale: Option<ScaleBasis>,
     prony: Option<mechanics::Prony>,
+    /// The Fz range the calibration's force sensor saw, N.
+    fz_range_n: Option<[f64; 2]>,
 }
 
 /// One frame read: the model's features, the share of markers measured, and the traction
@@ -51,6 +53,7 @@ impl Reader {
             traction,
             scale,
             prony: file.prony(),
+            fz_range_n: file.ranges.get("fz_n").copied(),
         }
     }
 
@@ -59,6 +62,11 @@ impl Reader {
     /// ([`analysis::force_sensor::memory`]), read frame by frame in time order.
     pub fn memory(&self) -> Option<Memory> {
         self.prony.clone().map(Memory::new)
+    }
+
+    /// The Fz range the sensor was calibrated over (its force sensor's readings), N.
+    pub fn fz_range_n(&self) -> Option<[f64; 2]> {
+        self.fz_range_n
     }
 
     /// Reads one frame's `field` with its contact region (centroid, equivalent radius, px),

@@ -67,6 +67,7 @@ pub(crate) fn wrench_of_frames(
         reader
             .memory()
             .filter(|_| frames.iter().skip(1).all(|f| f.t_ns > 0)),
+        reader.fz_range_n(),
     );
     Ok(frames
         .iter()

@@ -6,7 +6,7 @@ use std::f64::consts::PI;
 use super::shapes::profile;
 use super::{ContactModel, Normal, tol};
 use crate::Indenter;
-use crate::operator::{Grid, LayerOperator, fast_size};
+use crate::operator::{Compliance, Grid, LayerOperator, fast_size};
 use crate::solve::normal_unknown_area;
 
 impl ContactModel {
@@ -65,5 +65,56 @@ impl ContactModel {
             forces_n: forces,
             radii_mm: radii,
         }
+    }
+
+    /// The friction tractions of a curved indenter's pressing at `depth_mm`, as the two
+    /// depth buckets around it with their weights (as [`Self::curved_field_pressure`]
+    /// blends the pressure: one bucket's tractions held until the midpoint made the field
+    /// jump there, and shrink as the depth grew past it).
+    pub(super) fn curved_pressing_parts(
+        &mut self,
+        depth_mm: f64,
+    ) -> Vec<(Vec<f64>, Vec<f64>, Grid, f64)> {
+        let h = self.spec.contact.layer.thickness_mm;
+        let x = (depth_mm / h * 200.0).max(0.0);
+        let lo = x.floor();
+        let w = x - lo;
+        let mut parts = Vec::new();
+        for (key, weight) in [(lo, 1.0 - w), (lo + 1.0, w)] {
+            if key > 0.0 && weight > 1e-9 {
+                let (px, py, g) = self.pressing_tractions(key / 200.0 * h);
+                parts.push((px, py, g, weight));
+            }
+        }
+        parts
+    }
+
+    /// The pressure a curved indenter puts on the field grid `op` at `depth_mm`: solved at
+    /// the two depth buckets (0.5 % of the thickness) around it, each cached, and blended
+    /// linearly. The field then follows the depth continuously — a grasp's gel creeps by
+    /// less than a bucket in seconds, and snapping to buckets held its field still while
+    /// the depth moved.
+    pub(super) fn curved_field_pressure(&mut self, op: &LayerOperator, depth_mm: f64) -> Vec<f64> {
+        let h = self.spec.contact.layer.thickness_mm;
+        let x = (depth_mm / h * 200.0).max(0.0);
+        let lo = x.floor() as u64;
+        let w = x - lo as f64;
+        let mut at = |key: u64| -> Vec<f64> {
+            if key == 0 {
+                return vec![0.0; op.grid().len()];
+            }
+            if let Some(p) = self.field_pressure.get(&key) {
+                return p.clone();
+            }
+            let p = self.pressure_on(op, key as f64 / 200.0 * h);
+            self.field_pressure.insert(key, p.clone());
+            p
+        };
+        let p0 = at(lo);
+        if w < 1e-9 {
+            return p0;
+        }
+        let p1 = at(lo + 1);
+        p0.iter().zip(&p1).map(|(a, b)| a + w * (b - a)).collect()
     }
 }

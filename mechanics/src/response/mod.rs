@@ -685,24 +685,13 @@ impl ContactModel {
                 uz: z,
             });
         }
-        let h = self.spec.contact.layer.thickness_mm;
         let flat = matches!(self.normal, Normal::Flat { .. });
         let p = match flat {
             true => {
                 let (unit, _, _) = self.flat_field_tractions()?;
                 unit.iter().map(|v| v * d).collect()
             }
-            false => {
-                let key = quantise(d, h);
-                match self.field_pressure.get(&key) {
-                    Some(p) => p.clone(),
-                    None => {
-                        let p = self.pressure_on(&op, key as f64 / 200.0 * h);
-                        self.field_pressure.insert(key, p.clone());
-                        p
-                    }
-                }
-            }
+            false => self.curved_field_pressure(&op, d),
         };
         let (mut qx, mut qy) = (vec![0.0; grid.len()], vec![0.0; grid.len()]);
         let mut add = |t: (Vec<f64>, Vec<f64>), src: Grid, weight: f64| {
@@ -754,17 +743,15 @@ impl ContactModel {
             (None, None) => {
                 // Normal load only: friction still holds the pressed surface where it
                 // touched against the layer's outward flow.
-                let (px, py, g) = if flat {
+                if flat {
                     let (_, qx, qy) = self.flat_field_tractions()?;
-                    (
-                        qx.iter().map(|v| v * d).collect(),
-                        qy.iter().map(|v| v * d).collect(),
-                        grid,
-                    )
+                    let scaled = |q: &[f64]| q.iter().map(|v| v * d).collect();
+                    add((scaled(&qx), scaled(&qy)), grid, 1.0);
                 } else {
-                    self.pressing_tractions(d)
-                };
-                add((px, py), g, 1.0);
+                    for (px, py, g, w) in self.curved_pressing_parts(d) {
+                        add((px, py), g, w);
+                    }
+                }
             }
         }
         let [ux, uy, uz] = op.full(&qx, &qy, &p);

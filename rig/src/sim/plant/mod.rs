@@ -26,7 +26,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 
-use super::grasp::{Grasp, series_depth_mm};
+use super::grasp::Grasp;
 use crate::RigError;
 use crate::config::AxisRole;
 use crate::device::{ForceRange, STATUS_SATURATED, SimTruth, Wrench};
@@ -210,6 +210,8 @@ pub(crate) struct Plant {
     twist: Option<Channel>,
     needs: PlantNeeds,
     in_contact: bool,
+    /// The gel's depth in a grasp, solved each step ([`Self::grasp_depth_step`]).
+    grasp_depth_mm: f64,
     grasp: Option<Grasp>,
     /// The gel's backbones in the grasp, at a quantised depth (key, shear, twist, stick
     /// fractions along the shear backbone).
@@ -272,6 +274,7 @@ impl Plant {
             shear: None,
             twist: None,
             in_contact: false,
+            grasp_depth_mm: 0.0,
             grasp: None,
             grasp_curves: None,
             grasp_reference: None,
@@ -427,45 +430,6 @@ impl Plant {
         });
     }
 
-    /// Which axis presses the indenter (or the grasped object) into the elastomer.
-    fn pressing_axis(&self) -> Option<(AxisRole, f64)> {
-        if self.axes.contains_key(&AxisRole::Normal) {
-            Some((AxisRole::Normal, self.geometry.normal_contact_mm))
-        } else if self.axes.contains_key(&AxisRole::Grip) {
-            Some((AxisRole::Grip, self.geometry.grip_contact_mm))
-        } else {
-            None
-        }
-    }
-
-    fn depth_at(&self, t_ns: u64) -> f64 {
-        match self.pressing_axis() {
-            Some((AxisRole::Grip, contact)) if self.spec.object_mass_g.is_some() => {
-                // The grip's closure is shared with the sponge behind the Nano17.
-                let closure = self
-                    .position(AxisRole::Grip, t_ns)
-                    .map(|p| p - contact)
-                    .unwrap_or(0.0);
-                let k = self.grasp_params().map(|g| g.sponge_normal_n_per_mm);
-                series_depth_mm(closure, k.unwrap_or(f64::INFINITY), |d| {
-                    self.elastic_normal_n(d)
-                })
-            }
-            Some((role, contact)) => self
-                .position(role, t_ns)
-                .map(|p| p - contact)
-                .unwrap_or(0.0),
-            None => 0.0,
-        }
-    }
-
-    /// Long-term elastic normal force at depth `d`, saturating on the rigid base.
-    fn elastic_normal_n(&self, d: f64) -> f64 {
-        let h = self.spec.contact.layer.thickness_mm;
-        let d_max = BASE_CONTACT_FRACTION * h;
-        self.model.normal_force_n(d.min(d_max)) + BASE_STIFFNESS_N_PER_MM * (d - d_max).max(0.0)
-    }
-
     /// Integrates the plant's hereditary state up to `t_ns`, splitting at the end of every
     /// move and into steps of at most 5 ms while anything moves.
     pub(crate) fn advance_to(&mut self, t_ns: u64) {
@@ -519,7 +483,10 @@ impl Plant {
         let t0_ns = self.t_ns;
         let dt_s = (t1_ns - self.t_ns) as f64 * 1e-9;
         self.t_ns = t1_ns;
-        let d = self.depth_at(t1_ns);
+        let d = match self.grasp_closure(t1_ns) {
+            Some((closure_mm, k)) => self.grasp_depth_step(closure_mm, k, dt_s),
+            None => self.depth_at(t1_ns),
+        };
         let shear_pos = self.position(AxisRole::Shear, t1_ns).unwrap_or(0.0);
         let twist_pos = self
             .position(AxisRole::Rotation, t1_ns)
@@ -670,11 +637,7 @@ impl Plant {
             equilibrium: Wrench {
                 fx_n: fx_eq,
                 fy_n: self.grasp_loads().map(|l| l.sponge_n).unwrap_or(0.0),
-                fz_n: if d > 0.0 {
-                    self.elastic_normal_n(d)
-                } else {
-                    0.0
-                },
+                fz_n: self.equilibrium_normal_n(t_ns),
                 tx_nmm: tx_eq,
                 ty_nmm: ty_eq,
                 tz_nmm: self
@@ -801,6 +764,7 @@ impl Plant {
     }
 }
 
+mod depth;
 mod grasping;
 #[cfg(test)]
 mod tests;

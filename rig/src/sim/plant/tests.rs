@@ -301,3 +301,93 @@ fn pressing_on_the_base_saturates_the_sensor_instead_of_nan() {
     assert_eq!(w.fz_n, 70.0);
     assert_ne!(status & STATUS_SATURATED, 0);
 }
+
+/// RMS of the pressing's surface field (in-plane) at the plant's present depth: the
+/// tangential loads left out (a grasped can's weight moves between the table and the gel).
+fn field_rms_mm(p: &mut Plant, t_ns: u64) -> f64 {
+    let pose = p.surface_pose(t_ns);
+    let state = mechanics::response::State {
+        shear_n: 0.0,
+        torque_nmm: 0.0,
+        ..pose.state
+    };
+    let f = p.model.field(state).expect("fields asked for");
+    let n = f.ux.len() as f64;
+    (f.ux
+        .iter()
+        .zip(&f.uy)
+        .map(|(x, y)| x * x + y * y)
+        .sum::<f64>()
+        / n)
+        .sqrt()
+}
+
+/// The correspondence principle's two halves (a constant-ν gel): with the depth held the
+/// surface field stays while the force relaxes; in a grasp, where the gel shares the
+/// grip's closure with a soft sponge (the force nearly held), the gel creeps deeper and
+/// its field grows, gel and sponge carrying one force at every instant.
+#[test]
+fn a_held_depth_keeps_its_field_and_a_held_grip_lets_it_creep() {
+    let prony = vec![PronyTerm {
+        weight: 0.5,
+        tau_s: 2.0,
+    }];
+    let needs = PlantNeeds {
+        fields: true,
+        ..PlantNeeds::default()
+    };
+    let mut p = plant(
+        Indenter::Sphere { diameter_mm: 12.68 },
+        prony.clone(),
+        None,
+        needs,
+    );
+    p.add_axis(AxisRole::Normal, 10.0);
+    p.start_move(AxisRole::Normal, 10.5, 1.0, 0, false);
+    p.advance_to(S);
+    let (f0, u0) = (p.true_wrench().fz_n, field_rms_mm(&mut p, S));
+    p.advance_to(30 * S);
+    let (f1, u1) = (p.true_wrench().fz_n, field_rms_mm(&mut p, 30 * S));
+    assert!(
+        f1 < 0.8 * f0,
+        "the force relaxes at a held depth: {f0} → {f1}"
+    );
+    assert!(
+        u0 > 0.0 && (u1 - u0).abs() < 1e-9 * u0,
+        "the field stays: {u0} → {u1}"
+    );
+
+    let mut p = plant(
+        Indenter::Cylinder {
+            diameter_mm: 57.2,
+            length_mm: 20.0,
+        },
+        prony,
+        Some(100.0),
+        needs,
+    );
+    p.add_axis(AxisRole::Grip, 0.0);
+    p.add_axis(AxisRole::Lift, 0.0);
+    // First touch at 10 mm; close 2 mm past it, reached at 12 s, then hold the grip.
+    p.start_move(AxisRole::Grip, 12.0, 1.0, 0, false);
+    let k = p.grasp_params().expect("a can").sponge_normal_n_per_mm;
+    let mut last: Option<(f64, f64)> = None;
+    for t in [12 * S + S / 2, 14 * S, 18 * S, 40 * S] {
+        p.advance_to(t);
+        let d = p.truth(t).depth_mm;
+        let f = p.true_wrench().fz_n;
+        let u = field_rms_mm(&mut p, t);
+        let sponge = k * (2.0 - d);
+        assert!(
+            (f - sponge).abs() < 1e-6 * sponge,
+            "gel {f} N and sponge {sponge} N carry one force"
+        );
+        if let Some((d0, u0)) = last {
+            assert!(
+                d > d0 && u > u0,
+                "creeps: depth {d0} → {d}, field {u0} → {u}"
+            );
+        }
+        last = Some((d, u));
+    }
+}

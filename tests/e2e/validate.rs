@@ -383,26 +383,36 @@ fn schema_is_generated_from_the_parser_types() {
 /// Errors inside `indenter:` point at the value, not at the file's first line.
 #[test]
 fn errors_inside_the_indenter_point_at_the_value() {
-    let base = shipped_text("portable-normal");
-    let text = edit(&base, "diameter: 12.5 mm}", "diameter: 12.5}");
-    let d = error_with(&text, "has no unit");
-    let line = line_of(&text, "indenter:");
-    assert_eq!(
-        (d.line, d.column),
-        (
-            line,
-            text.lines().nth(line - 1).unwrap().find("12.5").unwrap() + 1
-        ),
-        "{d}"
-    );
-    let text = edit(
-        &base,
-        "{shape: flat_circle, diameter: 12.5 mm}",
-        "{shape: flat_circle}",
-    );
-    let d = error_with(&text, "missing field `diameter`");
-    assert_eq!(d.line, line, "{d}");
-    assert!(d.column > 1, "{d}");
+    // With its opening comment block (the shipped file) and without it: the comments once
+    // moved these errors to the document's first line.
+    let shipped = shipped_text("portable-normal");
+    assert!(shipped.starts_with('#'));
+    let bare: String = shipped
+        .lines()
+        .skip_while(|l| l.starts_with('#'))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    for base in [shipped, bare] {
+        let text = edit(&base, "diameter: 12.5 mm}", "diameter: 12.5}");
+        let d = error_with(&text, "has no unit");
+        let line = line_of(&text, "indenter:");
+        assert_eq!(
+            (d.line, d.column),
+            (
+                line,
+                text.lines().nth(line - 1).unwrap().find("12.5").unwrap() + 1
+            ),
+            "{d}"
+        );
+        let text = edit(
+            &base,
+            "{shape: flat_circle, diameter: 12.5 mm}",
+            "{shape: flat_circle}",
+        );
+        let d = error_with(&text, "missing field `diameter`");
+        assert_eq!(d.line, line, "{d}");
+        assert!(d.column > 1, "{d}");
+    }
 }
 
 /// A copied protocol whose `rig:` no longer resolves: the resolved path, at the `rig:` line,
@@ -492,4 +502,54 @@ fn an_adaptive_settle_is_checked_where_it_is_written() {
     let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
     let text = format!("{plan:?}");
     assert!(plan.duration_s.max > plan.duration_s.min, "{text}");
+}
+
+/// Every shipped protocol states, where it is read, the values the thesis does not give
+/// and a dry run assumes — the gel's modulus, Poisson's ratio, friction and relaxation
+/// exactly as the simulated bench uses them, and the preloads chosen to meet the thesis's
+/// slip points — so the comment cannot drift from what runs.
+#[test]
+fn every_shipped_protocol_states_the_values_it_assumes() {
+    for name in crate::support::SHIPPED {
+        let text = crate::support::shipped_text(name);
+        assert!(
+            text.starts_with("# Assumed values"),
+            "{name}: no \"# Assumed values\" block at the top"
+        );
+        let loaded = crate::support::load_ok(&crate::support::protocol(name));
+        let spec = experiments::protocol::plant_spec(&loaded.protocol, &loaded.compiled).unwrap();
+        let m = &spec.contact.material;
+        let terms: Vec<String> = m
+            .prony
+            .iter()
+            .map(|t| format!("{}·e^(−t/{} s)", t.weight, t.tau_s))
+            .collect();
+        let gel = format!(
+            "E∞ {} MPa, ν {}, μ {} static / {:.2} sliding, relaxation g(t) = 1 + {}",
+            m.youngs_modulus_mpa,
+            m.poisson_ratio,
+            m.friction,
+            spec.kinetic_friction,
+            terms.join(" + ")
+        );
+        assert!(
+            text.contains(&gel),
+            "{name}: the gel is not stated as run: {gel}"
+        );
+        // A preload the thesis does not give is stated with why it was chosen.
+        for assumed in ["box-shear-flat", "portable-rotation"] {
+            if name == assumed {
+                assert!(
+                    text.contains("# - the preload"),
+                    "{name}: its preload is not stated"
+                );
+            }
+        }
+        if name.starts_with("lifting-can") {
+            assert!(
+                text.contains("# - the jig"),
+                "{name}: the jig is not stated"
+            );
+        }
+    }
 }

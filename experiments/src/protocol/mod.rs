@@ -124,12 +124,22 @@ pub fn parse(file: &Path, text: &str) -> Result<Protocol, Box<Diagnostic>> {
         .map_err(|mut d| Box::new(d.remove(0)))?;
     serde_yaml::from_str::<Protocol>(text).map_err(|e| {
         let mut d = Diagnostic::from_yaml_error(file, text, &e);
-        if e.location().is_none_or(|l| l.line() <= 1) {
-            // Errors inside internally tagged maps (`indenter:`, `markers:`) come without a
-            // place: find the value serde was reading, and the offending token in it.
-            if let Some(path) = failing_path(text) {
-                d = relocate(d, file, text, &path);
-            }
+        // Errors inside internally tagged maps (`indenter:`, `markers:`) come without a
+        // place — at the document's first line, which follows any leading comments (a
+        // protocol that opens with a comment block had them pointed at its `name:`): find
+        // the value serde was reading, and the offending token in it.
+        let start = text
+            .lines()
+            .position(|l| {
+                let l = l.trim();
+                !(l.is_empty() || l.starts_with('#') || l == "---")
+            })
+            .map_or(1, |i| i + 1);
+        if e.location()
+            .is_none_or(|l| l.line() <= start && l.column() <= 1)
+            && let Some(path) = failing_path(text)
+        {
+            d = relocate(d, file, text, &path);
         }
         Box::new(d)
     })

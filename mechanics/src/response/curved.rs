@@ -67,26 +67,20 @@ impl ContactModel {
         }
     }
 
-    /// The friction tractions of a curved indenter's pressing at `depth_mm`, as the two
-    /// depth buckets around it with their weights (as [`Self::curved_field_pressure`]
-    /// blends the pressure: one bucket's tractions held until the midpoint made the field
-    /// jump there, and shrink as the depth grew past it).
-    pub(super) fn curved_pressing_parts(
-        &mut self,
-        depth_mm: f64,
-    ) -> Vec<(Vec<f64>, Vec<f64>, Grid, f64)> {
+    /// The two depth buckets (0.5 % of the thickness) around `depth_mm` with their linear
+    /// weights, for the field's tables (as [`Self::curved_field_pressure`] blends the
+    /// pressure: one bucket's tractions held until the midpoint made the field stand still
+    /// and then jump there). The bucket at zero depth is left out: nothing is pressed there.
+    pub(super) fn depth_buckets(&self, depth_mm: f64) -> Vec<(f64, f64)> {
         let h = self.spec.contact.layer.thickness_mm;
         let x = (depth_mm / h * 200.0).max(0.0);
         let lo = x.floor();
         let w = x - lo;
-        let mut parts = Vec::new();
-        for (key, weight) in [(lo, 1.0 - w), (lo + 1.0, w)] {
-            if key > 0.0 && weight > 1e-9 {
-                let (px, py, g) = self.pressing_tractions(key / 200.0 * h);
-                parts.push((px, py, g, weight));
-            }
-        }
-        parts
+        [(lo, 1.0 - w), (lo + 1.0, w)]
+            .into_iter()
+            .filter(|&(key, weight)| key > 0.0 && weight > 1e-9)
+            .map(|(key, weight)| (key / 200.0 * h, weight))
+            .collect()
     }
 
     /// The pressure a curved indenter puts on the field grid `op` at `depth_mm`: solved at

@@ -714,43 +714,44 @@ impl ContactModel {
             }
         };
         // Tangential tractions only for a loaded channel: an unloaded one would cost a
-        // backbone solve for nothing.
-        let shear = if state.shear_n != 0.0 {
-            self.shear_table(d)
+        // backbone solve for nothing. A curved indenter's tables are those of the two depth
+        // buckets around the depth, blended as its pressure is (a creeping grasp's field
+        // jumped by 3 % where it crossed a bucket's midpoint).
+        let buckets = if flat {
+            vec![(d, 1.0)]
         } else {
-            None
+            self.depth_buckets(d)
         };
-        let twist = if state.torque_nmm != 0.0 {
-            self.twist_table(d)
-        } else {
-            None
-        };
-        match (&shear, &twist) {
-            (Some(s), _) => {
-                let t = s.tractions_for_force(state.shear_n);
-                add(t, s.grid, 1.0);
-                if let Some(tw) = &twist {
-                    let t = tw.tractions_for_force(state.torque_nmm);
-                    add((t.0, t.1), tw.grid, 1.0);
-                    let pr = tw.pressing.clone();
-                    add(pr, tw.grid, -1.0);
+        for (db, w) in buckets {
+            let shear = if state.shear_n != 0.0 {
+                self.shear_table(db)
+            } else {
+                None
+            };
+            let twist = if state.torque_nmm != 0.0 {
+                self.twist_table(db)
+            } else {
+                None
+            };
+            match (&shear, &twist) {
+                (Some(s), _) => {
+                    add(s.tractions_for_force(state.shear_n), s.grid, w);
+                    if let Some(tw) = &twist {
+                        add(tw.tractions_for_force(state.torque_nmm), tw.grid, w);
+                        add(tw.pressing.clone(), tw.grid, -w);
+                    }
                 }
-            }
-            (None, Some(tw)) => {
-                let t = tw.tractions_for_force(state.torque_nmm);
-                add(t, tw.grid, 1.0);
-            }
-            (None, None) => {
+                (None, Some(tw)) => add(tw.tractions_for_force(state.torque_nmm), tw.grid, w),
                 // Normal load only: friction still holds the pressed surface where it
                 // touched against the layer's outward flow.
-                if flat {
+                (None, None) if flat => {
                     let (_, qx, qy) = self.flat_field_tractions()?;
                     let scaled = |q: &[f64]| q.iter().map(|v| v * d).collect();
                     add((scaled(&qx), scaled(&qy)), grid, 1.0);
-                } else {
-                    for (px, py, g, w) in self.curved_pressing_parts(d) {
-                        add((px, py), g, w);
-                    }
+                }
+                (None, None) => {
+                    let (px, py, g) = self.pressing_tractions(db);
+                    add((px, py), g, w);
                 }
             }
         }

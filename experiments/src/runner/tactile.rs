@@ -98,15 +98,14 @@ impl LiveTactile {
                 }
             }
         }
+        // The live path always looks for the contact region.
         let history = self.gelsight_history.get_or_insert_with(|| {
-            crate::sensor::history::LoadHistory::new(reader.memory(), reader.fz_range_n())
+            crate::sensor::history::LoadHistory::new(reader.memory(), reader.fz_range_n(), true)
         });
         let region = history.region(field, seen);
         let reading = reader.read(field, region, map.as_ref()?);
         let (mut v, sd) = reader.model.predict(&reading.features);
-        if let Some(fz) = v.get_mut(2) {
-            *fz = history.fz(t_ns, *fz, region);
-        }
+        history.wrench(t_ns, &mut v, region);
         Some((v, sd))
     }
 

@@ -33,6 +33,9 @@ pub struct LoadHistory {
     credible_n: [f64; 2],
     /// The last credible elastic force, N.
     last_fe: f64,
+    /// Whether the recording's contact regions were looked for: then a frame without one
+    /// is a free gel.
+    contact_found: bool,
     /// The last region the image showed, and the field's rms then, px.
     last_region: Option<(Region, f64)>,
 }
@@ -40,8 +43,9 @@ pub struct LoadHistory {
 impl LoadHistory {
     /// A gel with no history; `memory` is the sensor's ([`super::reader::Reader::memory`]),
     /// `None` for a sensor that does not know its gel's relaxation; `fz_range_n` the Fz its
-    /// calibration's force sensor saw (the sensor file's `ranges`).
-    pub fn new(memory: Option<Memory>, fz_range_n: Option<[f64; 2]>) -> Self {
+    /// calibration's force sensor saw (the sensor file's `ranges`); `contact_found` whether
+    /// the recording's contact regions were looked for (false for one tracked without).
+    pub fn new(memory: Option<Memory>, fz_range_n: Option<[f64; 2]>, contact_found: bool) -> Self {
         let credible_n = match fz_range_n {
             Some([lo, hi]) if hi > lo => [0.0, hi + 0.25 * (hi - lo)],
             _ => [0.0, f64::INFINITY],
@@ -50,6 +54,7 @@ impl LoadHistory {
             memory,
             credible_n,
             last_fe: 0.0,
+            contact_found,
             last_region: None,
         }
     }
@@ -60,9 +65,23 @@ impl LoadHistory {
         bridge(&mut self.last_region, seen, rms_px(field))
     }
 
+    /// The wrench `v` (Fx, Fy, Fz, Tz as the model reads them from the field) of a frame at
+    /// `t_ns` with `region` (from [`Self::region`]): Fz through the gel's memory; and where
+    /// the image shows no contact and none is bridged, nothing — a free gel carries no load,
+    /// and the model's reading of an untouched field is its intercept, not a force (a jig
+    /// calibration read 0.40 N on the untouched gel before every grip, 8 % of the squeeze).
+    pub fn wrench(&mut self, t_ns: u64, v: &mut [f64], region: Option<Region>) {
+        if let Some(fz) = v.get_mut(2) {
+            *fz = self.fz(t_ns, *fz, region);
+        }
+        if region.is_none() && self.contact_found {
+            v.iter_mut().for_each(|x| *x = 0.0);
+        }
+    }
+
     /// The force at `t_ns` of a frame whose field reads the elastic force `f_e`, in contact
     /// with `region` (from [`Self::region`]); `f_e` itself for a sensor without memory.
-    pub fn fz(&mut self, t_ns: u64, f_e: f64, region: Option<Region>) -> f64 {
+    fn fz(&mut self, t_ns: u64, f_e: f64, region: Option<Region>) -> f64 {
         let Some(m) = self.memory.as_mut() else {
             return f_e;
         };
@@ -112,7 +131,23 @@ fn bridge(last: &mut Option<(Region, f64)>, seen: Option<Region>, total_px: f64)
 
 #[cfg(test)]
 mod tests {
-    use super::bridge;
+    use super::{LoadHistory, bridge};
+
+    /// Where contact regions are looked for, a frame without one reads no load; where they
+    /// are not (a recording tracked without), the field's reading stands.
+    #[test]
+    fn a_free_gel_reads_no_load_where_contact_is_looked_for() {
+        let region = Some(([320.0, 240.0], 40.0));
+        for (found, want) in [(true, [0.0; 4]), (false, [0.1, -0.05, 0.4, 0.02])] {
+            let mut h = LoadHistory::new(None, Some([0.0, 24.0]), found);
+            let mut v = [0.1, -0.05, 0.4, 0.02];
+            h.wrench(1, &mut v, None);
+            assert_eq!(v, want, "contact looked for: {found}");
+            let mut v = [0.1, -0.05, 4.0, 0.02];
+            h.wrench(2, &mut v, region);
+            assert_eq!(v, [0.1, -0.05, 4.0, 0.02], "in contact, the reading stands");
+        }
+    }
 
     #[test]
     fn a_frame_without_a_region_in_a_loaded_grasp_keeps_the_last_one_and_an_unloaded_gel_lets_go() {

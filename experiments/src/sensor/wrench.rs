@@ -68,6 +68,7 @@ pub(crate) fn wrench_of_frames(
             .memory()
             .filter(|_| frames.iter().skip(1).all(|f| f.t_ns > 0)),
         reader.fz_range_n(),
+        frames.iter().any(|f| f.contact.is_some()),
     );
     Ok(frames
         .iter()
@@ -76,9 +77,7 @@ pub(crate) fn wrench_of_frames(
             let reading = reader.read(&f.field, region, &map);
             let share = reading.measured_share;
             let (mut v, sd) = reader.model.predict(&reading.features);
-            if let Some(fz) = v.get_mut(2) {
-                *fz = history.fz(f.t_ns, *fz, region);
-            }
+            history.wrench(f.t_ns, &mut v, region);
             let at = |x: &[f64], i: usize| x.get(i).copied().unwrap_or(f64::NAN);
             WrenchRow {
                 frame: f.frame,

@@ -539,8 +539,11 @@ fn a_grasp_calibrated_in_its_jig_reads_the_relaxing_squeeze() {
         relaxation: None,
         ..sensor.clone()
     });
-    // BENCHMARKS "Force from the GelSight": 5.3 % of the peak with the memory, 11 % without.
-    assert!(with < 7.0, "Fz {with} % of peak with the gel's memory");
+    // 2.95 % of the peak with the memory, 13 % without. A history that started each grip
+    // "at rest" (the grip's first reading taken as relaxed) and forgot the last grip read
+    // 4.3 %: the can's strip is first seen at about a quarter of the squeeze, so the lift
+    // and hold lost that part of the overshoot.
+    assert!(with < 3.5, "Fz {with} % of peak with the gel's memory");
     assert!(without > 1.5 * with, "without {without} %, with {with} %");
 }
 

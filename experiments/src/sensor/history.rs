@@ -12,12 +12,17 @@
 //!   carries no pulling normal force, and an elastic reading far beyond the calibrated
 //!   range is the linear model extrapolating: both are the model outside its calibration
 //!   (a twist's field, on a sensor calibrated by pressing and shearing, reads 0–36 N at
-//!   2 Hz under a steady 5 N squeeze). In the history a negative force counts as the contact
-//!   receding (Ting 1966) and resets it, and a swing up and back leaves a residue in the
-//!   slow terms, so the twist would stay in it: `lifting-can`'s lowering read 36 % above the
-//!   Nano17 instead of the hold's 13 % (BENCHMARKS.md, "What the load history must not take
-//!   in"). Such a frame's force is the last credible one: below zero, or beyond the
+//!   2 Hz under a steady 5 N squeeze). A swing up and back leaves a residue in the slow
+//!   terms, so the twist would stay in the history: `lifting-can`'s lowering read 36 % above
+//!   the Nano17 instead of the hold's 13 % (BENCHMARKS.md, "What the load history must not
+//!   take in"). Such a frame's force is the last credible one: below zero, or beyond the
 //!   calibrated Fz range by more than a quarter of its span.
+//!
+//! And one thing stays in: **the free gel between contacts**. Where contact regions are
+//! looked for, a frame without one is a gel whose elastic force has gone to zero, applied to
+//! the history like any change ([`Memory::free`]): the next contact's force is applied from
+//! zero, and a gel gripped again before it has recovered from the last grip pushes back
+//! less, as a viscoelastic gel does.
 
 use analysis::field::MarkerField;
 use analysis::force_sensor::memory::Memory;
@@ -95,6 +100,7 @@ impl LoadHistory {
         };
         match region {
             Some(_) => m.apply(t_ns, f_e),
+            None if self.contact_found => m.free(t_ns),
             None => m.release(t_ns, f_e),
         }
     }
@@ -147,6 +153,31 @@ mod tests {
             h.wrench(2, &mut v, region);
             assert_eq!(v, [0.1, -0.05, 4.0, 0.02], "in contact, the reading stands");
         }
+    }
+
+    /// A contact the image first shows loaded, after free frames, is applied from zero: its
+    /// first reading carries the gel's overshoot (the bench's gel does; a history started
+    /// "at rest" read the can's lift and hold 0.3–0.4 N low).
+    #[test]
+    fn a_contact_after_a_free_gel_is_applied_from_zero() {
+        let prony = mechanics::Prony::new(vec![mechanics::PronyTerm {
+            weight: 0.5,
+            tau_s: 10.0,
+        }])
+        .expect("valid");
+        let memory = analysis::force_sensor::memory::Memory::new(prony);
+        let mut h = LoadHistory::new(Some(memory), Some([0.0, 24.0]), true);
+        for k in 0..5u64 {
+            let mut v = [0.0, 0.0, 0.3, 0.0];
+            h.wrench(k * 40_000_000, &mut v, None);
+            assert_eq!(v[2], 0.0, "a free gel reads no load");
+        }
+        let mut v = [0.0, 0.0, 2.0, 0.0];
+        h.wrench(5 * 40_000_000, &mut v, Some(([320.0, 240.0], 40.0)));
+        // A ramp from 0 to 2 N over 40 ms: 2·(1 + 0.5·(1 − e^{−x})/x), x = 0.004.
+        let x: f64 = 0.04 / 10.0;
+        let want = 2.0 * (1.0 + 0.5 * (-(-x).exp_m1() / x));
+        assert!((v[2] - want).abs() < 1e-9, "{} vs {want}", v[2]);
     }
 
     #[test]

@@ -17,7 +17,8 @@ Problem
   Boundary conditions:
     z = h (rigid base, bonded):   u_r = u_z = 0
     r = 0 (axis):                 u_r = 0
-    r = R_out (truncation):       u_r = 0 (default) or traction free (--outer free);
+    r = R_out (truncation, or with --r-out a finite pad's side):
+                                  u_r = 0 (default) or traction free (--outer free);
                                   the kernel decays like exp(-0.739 r/h), the two agree
                                   to < 1e-4 (reported as "truncation_check").
     z = 0, r <= a (punch):        u_z = delta and
@@ -97,6 +98,9 @@ Sanity checks (--selftest, and the last entry of --cases default)
 
 Usage
   python3 tests/peers/bonded_punch_fe.py --a 4.75 --h 4.2 --nu 0.49 [--levels 3] [--json]
+  python3 tests/peers/bonded_punch_fe.py --a 6.25 --h 2.0 --outer free --r-out 11.3
+                                        (a finite disc-shaped pad with free sides; only
+                                         the surface points on it are reported)
   python3 tests/peers/bonded_punch_fe.py --cases default       (JSON list)
   python3 tests/peers/bonded_punch_fe.py --selftest            (sanity checks)
 """
@@ -540,10 +544,12 @@ def _rich_list(per_level, nominal_p):
 
 
 def run_case(a, h, nu, levels=3, contacts=("frictionless", "stuck"), outer="fixed",
-             truncation_check=True, kind="punch", mesh_kw=None, verbose=False):
+             truncation_check=True, kind="punch", mesh_kw=None, verbose=False, r_out=None):
     t_start = time.time()
     E = 1.0
-    r_out = a + R_OUT_FACTOR * h
+    r_out = a + R_OUT_FACTOR * h if r_out is None else r_out
+    # A finite pad: only the surface points on it.
+    ur_points = [x for x in UR_POINTS if x * a < r_out]
     mk = dict(MESH_DEFAULTS)
     mk.update(mesh_kw or {})
     base = graded_mesh(a, h, r_out, **mk)
@@ -562,7 +568,7 @@ def run_case(a, h, nu, levels=3, contacts=("frictionless", "stuck"), outer="fixe
             d = dict(kappa=kappa_of(s["P"], a, nu, E), P=float(s["P"]),
                      energy_identity_residual=float(s["P"] * s["delta"] / (2.0 * s["U"]) - 1.0),
                      free_residual=float(s["res_free"]),
-                     ur_over_delta=_f(pr.surface_ur(s, UR_POINTS)))
+                     ur_over_delta=_f(pr.surface_ur(s, ur_points)))
             if c == "stuck":
                 pts = Q_OVER_P_POINTS + Q_NEAR_EDGE_POINTS
                 szz, srz = pr.surface_stress(s, pts)
@@ -586,7 +592,7 @@ def run_case(a, h, nu, levels=3, contacts=("frictionless", "stuck"), outer="fixe
             for c in contacts:
                 s2 = pr.solve(c, outer=other)
                 k2 = kappa_of(s2["P"], a, nu, E)
-                ur2 = pr.surface_ur(s2, UR_POINTS)
+                ur2 = pr.surface_ur(s2, ur_points)
                 trunc[c] = dict(
                     kappa_rel_diff=float(k2 / rec[c]["kappa"] - 1.0),
                     ur_max_abs_diff=float(np.max(np.abs(ur2 - np.array(rec[c]["ur_over_delta"])))))
@@ -597,7 +603,7 @@ def run_case(a, h, nu, levels=3, contacts=("frictionless", "stuck"), outer="fixe
 
     res = dict(kind=kind, scikit_fem_version=skfem.__version__, a_mm=a, h_mm=h, a_over_h=a / h, nu=nu, E=E, delta=1.0,
                R_out_mm=r_out, outer_bc=("u_r=0" if outer == "fixed" else "traction free"),
-               contacts=list(contacts), ur_points_r_over_a=UR_POINTS,
+               contacts=list(contacts), ur_points_r_over_a=ur_points,
                q_over_p_points_r_over_a=Q_OVER_P_POINTS,
                q_over_p_near_edge_points_r_over_a=Q_NEAR_EDGE_POINTS)
     ext = {}
@@ -699,6 +705,9 @@ def main(argv=None):
     ap.add_argument("--levels", type=int, default=3)
     ap.add_argument("--outer", choices=["fixed", "free"], default="fixed",
                     help="condition on r = R_out: u_r = 0 (fixed) or traction free")
+    ap.add_argument("--r-out", type=float,
+                    help="outer radius of the layer, mm (default a + 15 h: an infinite "
+                         "layer); with --outer free, a finite disc-shaped pad")
     ap.add_argument("--frictionless-only", action="store_true")
     ap.add_argument("--json", action="store_true", help="(output is always JSON)")
     ap.add_argument("--cases", choices=["default"])
@@ -729,8 +738,11 @@ def main(argv=None):
     if args.a is None or args.h is None:
         ap.error("give --a and --h, or --cases default, or --selftest")
     contacts = ("frictionless",) if args.frictionless_only else ("frictionless", "stuck")
+    if args.r_out is not None and args.r_out <= args.a + 0.5 * args.h:
+        ap.error("--r-out must exceed the punch radius by at least half the thickness")
     print(json.dumps(run_case(args.a, args.h, args.nu, args.levels, contacts=contacts,
-                              outer=args.outer, verbose=args.verbose), indent=1))
+                              outer=args.outer, verbose=args.verbose, r_out=args.r_out),
+                     indent=1))
     return 0
 
 

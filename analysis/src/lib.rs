@@ -30,6 +30,7 @@ pub mod force_sensor;
 pub mod frame_timing;
 pub mod hysteresis;
 pub mod linearity;
+pub mod material_fit;
 pub mod relaxation;
 pub mod settle_rules;
 pub mod slip;

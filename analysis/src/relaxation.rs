@@ -99,7 +99,7 @@ fn linear_part(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(DVector<f64>, DVec
 /// Levenberg–Marquardt over `theta` (finite-difference Jacobian) for a residual that may
 /// refuse a point (`None`). Returns the last accepted point and whether it converged
 /// (no further decrease possible, or a relative decrease under 1e-14).
-fn levenberg_marquardt(
+pub(crate) fn levenberg_marquardt(
     mut theta: Vec<f64>,
     max_iter: usize,
     residual: impl Fn(&[f64]) -> Option<DVector<f64>>,

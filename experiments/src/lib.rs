@@ -9,8 +9,10 @@
 //!
 //! The `gelrig` binary is a thin CLI over these modules.
 
+mod artifact;
 pub mod bench;
 pub mod diag;
+pub mod material;
 pub mod plan;
 pub mod progress;
 pub mod protocol;

@@ -44,8 +44,28 @@ impl RunData {
     }
 }
 
+/// The run's protocol, loaded against its own rig file; `Err` says why it does not load.
+pub(crate) fn run_protocol(dir: &Path) -> Result<crate::protocol::Loaded, String> {
+    crate::protocol::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml"))).map_err(|d| {
+        format!(
+            "its protocol.yaml does not load ({})",
+            d.first().map(|d| d.to_string()).unwrap_or_default()
+        )
+    })
+}
+
 /// Reads the run, tracking its frames into `markers.csv` first if that is missing.
 pub(crate) fn read_run(dir: &Path) -> Result<RunData, RunDirError> {
+    read(dir, true)
+}
+
+/// Reads the run's tables without its markers — no tracking, for a reader of forces and
+/// steps only (`fit-material`).
+pub(crate) fn read_run_tables(dir: &Path) -> Result<RunData, RunDirError> {
+    read(dir, false)
+}
+
+fn read(dir: &Path, with_markers: bool) -> Result<RunData, RunDirError> {
     if !dir.is_dir() {
         return Err(RunDirError::Missing {
             path: dir.to_path_buf(),
@@ -81,7 +101,7 @@ pub(crate) fn read_run(dir: &Path) -> Result<RunData, RunDirError> {
     let mut markers = BTreeMap::new();
     let mut frame_size = None;
     let mut contact = Vec::new();
-    if frames.len() > 1 {
+    if with_markers && frames.len() > 1 {
         let path = dir.join("markers.csv");
         if !path.is_file() || !dir.join("contact.csv").is_file() {
             track_into_place(dir)?;

@@ -13,6 +13,7 @@ mod fuzz;
 mod grasp;
 mod hostile;
 mod live;
+mod material;
 mod motion;
 mod peers;
 mod physics;

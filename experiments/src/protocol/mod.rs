@@ -5,6 +5,7 @@
 //! and [`compile`] checks everything that needs both and expands the sequence.
 
 pub mod compile;
+pub mod material;
 mod overrides;
 pub mod schema;
 pub mod shipped;
@@ -264,6 +265,7 @@ fn load_text(
     budget: &Budget,
 ) -> Result<Loaded, Vec<Diagnostic>> {
     let mut protocol = parse(protocol_path, &text).map_err(|d| vec![*d])?;
+    read_material(protocol_path, &text, &mut protocol).map_err(|d| vec![*d])?;
     protocol.sensor.resolve_defaults();
     let rig_path = match (rig_override, &protocol.rig) {
         (Some(r), _) => r.to_path_buf(),
@@ -443,6 +445,37 @@ fn too_fine_to_simulate(
     })
 }
 
+/// Replaces `sensor.material: {from: FILE}` by the file's values (the run directory's
+/// `protocol.yaml` then carries them, and reads back without the file).
+fn read_material(path: &Path, text: &str, protocol: &mut Protocol) -> Result<(), Box<Diagnostic>> {
+    let Some(schema::MaterialEntry::From(from)) = &protocol.sensor.material else {
+        return Ok(());
+    };
+    let file = path.parent().unwrap_or(Path::new(".")).join(&from.from);
+    let at = rig::config::YamlPath::root()
+        .key("sensor")
+        .key("material")
+        .key("from");
+    let m = crate::material::MaterialFile::read(&file).map_err(|e| {
+        let detail = match &e {
+            crate::material::MaterialFileError::Read { path, detail, .. } => {
+                format!("the material file {}: {detail}", path.display())
+            }
+            other => other.to_string(),
+        };
+        Box::new(Diagnostic::at_path(
+            path,
+            text,
+            &at,
+            Severity::Error,
+            detail,
+            "give the MATERIAL.yaml that `gelrig fit-material --out` wrote, relative to this protocol",
+        ))
+    })?;
+    protocol.sensor.material = Some(schema::MaterialEntry::Inline(m.material));
+    Ok(())
+}
+
 /// The simulated bench's description of this protocol's sensor, indenter and object;
 /// `compiled` bounds the depths the contact model must cover.
 pub fn plant_spec(p: &Protocol, compiled: &Compiled) -> Result<PlantSpec, String> {
@@ -452,10 +485,13 @@ pub fn plant_spec(p: &Protocol, compiled: &Compiled) -> Result<PlantSpec, String
         .elastomer
         .clone()
         .unwrap_or_else(|| schema::defaults::elastomer(kind));
-    let m = sensor
-        .material
-        .clone()
-        .unwrap_or_else(|| schema::defaults::material(kind));
+    let m = match &sensor.material {
+        None => schema::defaults::material(kind),
+        Some(entry) => entry.values().cloned().ok_or_else(|| {
+            "the protocol's `material: {from: …}` was not read (load the protocol with              `protocol::load`)"
+                .to_string()
+        })?,
+    };
     let v = sensor
         .view
         .clone()

@@ -19,6 +19,8 @@ use rig::units::{
     AxisQuantity, AxisSpeed, Duration, Force, Frequency, Length, Mass, Pressure, SettleRate, Torque,
 };
 use schemars::JsonSchema;
+
+pub use super::material::{MaterialEntry, MaterialFrom, MaterialSpec, PronySpec};
 use serde::{Deserialize, Serialize};
 
 /// A protocol file.
@@ -68,9 +70,11 @@ pub struct Sensor {
     /// The camera's field of view on the pad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub view: Option<View>,
-    /// Elastomer material, used by the simulated bench and the reference fields.
+    /// Elastomer material, used by the simulated bench and the reference fields: its
+    /// values, or `{from: MATERIAL.yaml}` (a file `gelrig fit-material` wrote, relative to
+    /// the protocol), which loading replaces by the file's values.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub material: Option<MaterialSpec>,
+    pub material: Option<MaterialEntry>,
 }
 
 /// Sensor design.
@@ -127,35 +131,6 @@ pub struct View {
     pub width: Length,
     /// Along y.
     pub height: Length,
-}
-
-/// Elastomer material (linear viscoelastic, isotropic).
-#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct MaterialSpec {
-    /// Long-term (relaxed) Young's modulus.
-    pub youngs_modulus: Pressure,
-    /// Poisson ratio, 0 to 0.5 (silicone: 0.49–0.5).
-    pub poisson_ratio: f64,
-    /// Static Coulomb friction coefficient against the indenter.
-    pub friction: f64,
-    /// Sliding (kinetic) friction coefficient, at most `friction` (default 0.9 × it): the
-    /// force drop after full slip (thesis Fig. 4-16).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub kinetic_friction: Option<f64>,
-    /// Prony terms: modulus `weight × E` relaxing with time constant `tau`.
-    #[serde(default)]
-    pub prony: Vec<PronySpec>,
-}
-
-/// One Prony (Maxwell) term.
-#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct PronySpec {
-    /// Modulus of the term relative to the long-term modulus.
-    pub weight: f64,
-    /// Relaxation time.
-    pub tau: Duration,
 }
 
 /// The indenter (thesis Fig. 3-11), or the grasped object's shape.
@@ -812,7 +787,7 @@ impl Sensor {
         self.markers.get_or_insert_with(|| defaults::markers(kind));
         self.view.get_or_insert_with(|| defaults::view(kind));
         self.material
-            .get_or_insert_with(|| defaults::material(kind));
+            .get_or_insert_with(|| MaterialEntry::Inline(defaults::material(kind)));
     }
 
     /// Layer thickness in mm (after [`Sensor::resolve_defaults`]).

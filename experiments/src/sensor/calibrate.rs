@@ -170,17 +170,13 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
     let mut held = Vec::new();
     for dir in runs {
         let data = read_run(dir)?;
-        let loaded = crate::protocol::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml")))
-            .map_err(|d| {
-                unfit(
-                    dir,
-                    format!(
-                        "its protocol.yaml does not load ({})",
-                        d.first().map(|d| d.to_string()).unwrap_or_default()
-                    ),
-                    "point calibrate at run directories made by `gelrig run`",
-                )
-            })?;
+        let loaded = crate::run_data::run_protocol(dir).map_err(|e| {
+            unfit(
+                dir,
+                e,
+                "point calibrate at run directories made by `gelrig run`",
+            )
+        })?;
         let frames = run_frames(&data);
         if frames.len() < 2 {
             return Err(unfit(

@@ -432,13 +432,9 @@ impl SensorFile {
     /// Writes the file (to a temporary beside it, then renamed: a failure leaves no half
     /// file under the name).
     pub fn write(&self, path: &Path) -> Result<(), SensorFileError> {
-        let err = |detail: String| SensorFileError::Write {
+        crate::artifact::write_yaml(path, self).map_err(|detail| SensorFileError::Write {
             path: path.to_path_buf(),
             detail,
-        };
-        let text = serde_yaml::to_string(self).map_err(|e| err(e.to_string()))?;
-        let tmp = path.with_extension("yaml.partial");
-        std::fs::write(&tmp, text).map_err(|e| err(e.to_string()))?;
-        std::fs::rename(&tmp, path).map_err(|e| err(e.to_string()))
+        })
     }
 }

@@ -65,6 +65,8 @@ enum Command {
     Report(cmd::report::Cmd),
     /// Calibrate the GelSight as a force sensor on runs with frames and force: SENSOR.yaml.
     Calibrate(cmd::calibrate::Cmd),
+    /// Fit the gel (modulus, relaxation, friction) to a bench's runs: MATERIAL.yaml.
+    FitMaterial(cmd::fit_material::Cmd),
     /// Write a run as MCAP with ROS 2 messages (Foxglove, Rerun, ros2 bag play) or Parquet.
     Export(cmd::export::Cmd),
     /// Open finished runs in the browser: runs with their status, plots, frames, reports.
@@ -88,6 +90,7 @@ fn main() -> ExitCode {
         Command::Track(c) => c.run(),
         Command::Report(c) => c.run(),
         Command::Calibrate(c) => c.run(),
+        Command::FitMaterial(c) => c.run(),
         Command::Export(c) => c.run(),
         Command::View(c) => c.run(),
         Command::Probe(c) => c.run(),

@@ -282,7 +282,7 @@ impl Compiler<'_> {
                 VIEW_SIDE,
             );
         }
-        if let Some(m) = &s.material {
+        if let Some(m) = s.material.as_ref().and_then(|m| m.values()) {
             let mat = at.key("material");
             self.within(
                 &mat.key("youngs_modulus"),

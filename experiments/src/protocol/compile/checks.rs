@@ -115,7 +115,7 @@ impl Compiler<'_> {
                 "write e.g. `{width: 45 mm, height: 40 mm}`",
             );
         }
-        if let Some(m) = &s.material {
+        if let Some(m) = s.material.as_ref().and_then(|m| m.values()) {
             let mat = at.key("material");
             if m.youngs_modulus.mpa() <= 0.0 {
                 self.error(

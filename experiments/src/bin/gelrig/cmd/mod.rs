@@ -2,6 +2,7 @@
 
 pub(crate) mod calibrate;
 pub(crate) mod export;
+pub(crate) mod fit_material;
 pub(crate) mod plan;
 pub(crate) mod probe;
 pub(crate) mod protocols;

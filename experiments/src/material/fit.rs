@@ -1,0 +1,422 @@
+//! `gelrig fit-material`: the gel of a bench, fitted to its recorded runs.
+//!
+//! Pressing runs (stepped on the `normal` axis, with a force record) give E∞, the Prony
+//! terms and each run's contact offset ([`analysis::material_fit`]); shear runs that reach
+//! gross slip give the static friction coefficient (the largest tangential-to-normal ratio
+//! up to the first slipping step, [`analysis::slip`]) and the sliding one (the mean ratio of
+//! the steps after). Poisson's ratio is held at the protocols' value: the force of a given
+//! indenter depends on E and ν together (through E* and the layer's κ(ν)), and a force
+//! record alone cannot tell them apart.
+
+use std::path::{Path, PathBuf};
+
+use analysis::material_fit::{MaterialFit, PressRecord, fit_material};
+use mechanics::response::{ContactModel, ModelSpec};
+use rig::units::{Duration, Pressure};
+
+use super::file::{FORMAT, FittedRun, MaterialFile, TermUncertainty, Uncertainty, VERSION};
+use crate::protocol::schema::{MaterialSpec, PronySpec};
+use crate::run_data::{RunData, StepRow, read_run_tables};
+
+/// Why a material could not be fitted.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {detail}; fix: {fix}")]
+pub struct FitError {
+    /// The run (or the first run) concerned.
+    pub path: PathBuf,
+    /// What went wrong.
+    pub detail: String,
+    /// What to do.
+    pub fix: String,
+}
+
+fn unfit(path: &Path, detail: impl Into<String>, fix: impl Into<String>) -> FitError {
+    FitError {
+        path: path.to_path_buf(),
+        detail: detail.into(),
+        fix: fix.into(),
+    }
+}
+
+/// One run, read and understood.
+struct Run {
+    dir: PathBuf,
+    data: RunData,
+    /// The material its protocol assumed.
+    assumed: MaterialSpec,
+    /// Each step's move speed, axis unit/s (the protocol's).
+    speeds: std::collections::BTreeMap<u32, f64>,
+    /// The speed of the approach that found the contact on a pressing axis, mm/s.
+    approach_speed: Option<f64>,
+    /// The elastic force at unit modulus (1 MPa) against depth, from the run's indenter
+    /// and layer (a depth table, linearly interpolated).
+    unit_force: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+/// Fits a material to `runs` (run directories made by `gelrig run`).
+pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
+    let Some(first) = runs.first() else {
+        return Err(unfit(
+            Path::new("."),
+            "no run directories given",
+            "name the runs: gelrig fit-material runs/A runs/B --out material.yaml",
+        ));
+    };
+    let mut read = Vec::new();
+    for dir in runs {
+        read.push(read_one(dir)?);
+    }
+    let pressing: Vec<(usize, PressRecord)> = read
+        .iter()
+        .enumerate()
+        .filter_map(|(k, r)| Some((k, press_record(&r.data, &r.speeds, r.approach_speed)?)))
+        .collect();
+    if pressing.is_empty() {
+        return Err(unfit(
+            first,
+            "none of the runs presses the gel in held steps with a force record",
+            "fit on stepped `normal` runs recorded with `record: {force: 20 Hz}` (e.g. \
+             protocols/portable-normal.yaml)",
+        ));
+    }
+    let nu = read[pressing[0].0].assumed.poisson_ratio;
+    if let Some(r) = read
+        .iter()
+        .find(|r| (r.assumed.poisson_ratio - nu).abs() > 1e-9)
+    {
+        return Err(unfit(
+            &r.dir,
+            format!(
+                "its protocol assumes ν = {}, another run's {nu}: one gel has one ν",
+                r.assumed.poisson_ratio
+            ),
+            "fit runs of one gel together",
+        ));
+    }
+    let records: Vec<PressRecord> = pressing.iter().map(|(_, p)| p.clone()).collect();
+    let tables: Vec<&(Vec<f64>, Vec<f64>)> = pressing
+        .iter()
+        .map(|(k, _)| read[*k].unit_force.as_ref())
+        .collect::<Option<_>>()
+        .ok_or_else(|| unfit(first, "a run's indenter has no model", "report this"))?;
+    let phi = |k: usize, d: f64| interp(tables[k], d);
+    let fit = fit_material(&records, &phi).ok_or_else(|| {
+        unfit(
+            first,
+            "the pressing records cannot be fitted (too short, or no relaxation model fits)",
+            "fit on runs whose steps hold at least 10 s with a force record throughout",
+        )
+    })?;
+    let friction = friction_of(&read);
+    Ok(file(&read, &pressing, &fit, friction, nu))
+}
+
+fn read_one(dir: &Path) -> Result<Run, FitError> {
+    let data = read_run_tables(dir).map_err(|e| {
+        unfit(
+            dir,
+            format!("not a readable run ({e})"),
+            "point fit-material at run directories made by `gelrig run`",
+        )
+    })?;
+    let loaded = crate::run_data::run_protocol(dir).map_err(|e| {
+        unfit(
+            dir,
+            e,
+            "point fit-material at run directories made by `gelrig run`",
+        )
+    })?;
+    let spec = crate::protocol::plant_spec(&loaded.protocol, &loaded.compiled).map_err(|e| {
+        unfit(
+            dir,
+            e,
+            "point fit-material at runs of a simulated or real gel",
+        )
+    })?;
+    let assumed = loaded
+        .protocol
+        .sensor
+        .material
+        .as_ref()
+        .and_then(|m| m.values())
+        .cloned()
+        .ok_or_else(|| unfit(dir, "its protocol gives no material", "report this"))?;
+    let pressing_friction = loaded
+        .rig
+        .sim
+        .as_ref()
+        .and_then(|s| s.pressing_friction)
+        .unwrap_or(false);
+    // The layer's force at 1 MPa: the contact model is linear in the modulus.
+    let mut contact = spec.contact.clone();
+    contact.material.youngs_modulus_mpa = 1.0;
+    let depths: Vec<f64> = (0..=200)
+        .map(|i| spec.max_depth_mm * i as f64 / 200.0)
+        .collect();
+    let unit_force = ContactModel::build(ModelSpec {
+        contact,
+        max_depth_mm: spec.max_depth_mm,
+        shear: false,
+        twist: false,
+        field_view_mm: None,
+        pressing_friction,
+        quality: spec.quality,
+    })
+    .ok()
+    .map(|m| {
+        let f: Vec<f64> = depths.iter().map(|&d| m.normal_force_n(d)).collect();
+        (depths, f)
+    });
+    let speeds = loaded
+        .compiled
+        .actions
+        .iter()
+        .filter_map(|a| match &a.kind {
+            crate::protocol::compile::ActionKind::Step(s) => Some((s.step, s.speed)),
+            _ => None,
+        })
+        .collect();
+    let approach_speed = loaded.compiled.actions.iter().find_map(|a| match &a.kind {
+        crate::protocol::compile::ActionKind::Approach(s)
+            if PRESSING_AXES.contains(&s.axis.to_string().as_str()) =>
+        {
+            Some(s.speed)
+        }
+        _ => None,
+    });
+    Ok(Run {
+        dir: dir.to_path_buf(),
+        data,
+        assumed,
+        speeds,
+        approach_speed,
+        unit_force,
+    })
+}
+
+/// Linear interpolation in a depth table, zero out of contact, extended linearly past its
+/// end.
+fn interp((d, f): &(Vec<f64>, Vec<f64>), x: f64) -> f64 {
+    if x <= 0.0 || d.len() < 2 {
+        return 0.0;
+    }
+    let i = d.partition_point(|v| *v < x).clamp(1, d.len() - 1);
+    let w = (x - d[i - 1]) / (d[i] - d[i - 1]).max(1e-300);
+    f[i - 1] + w * (f[i] - f[i - 1])
+}
+
+/// How much of the approach before the first step the record keeps, s.
+const APPROACH_S: f64 = 5.0;
+
+/// Axes that press the gel.
+const PRESSING_AXES: [&str; 2] = ["normal", "grip"];
+
+/// The run's pressing record: its held steps on a pressing axis, the commanded depth as a
+/// ramp from each step's start at the protocol's speed (the stage moves at constant speed;
+/// the settle starts only when the runner has seen it stop, a poll later, so the settle's
+/// start would stretch the ramp) and the force throughout; up to the first step back at (or
+/// above) the contact origin, where a gel unloaded faster than it recovers leaves the
+/// indenter (a clamp the linear model does not have).
+///
+/// The approach that found the contact ends where the first step starts, pressing the gel at
+/// its creep speed until the force threshold: its last seconds are in the record too, so
+/// the first step starts with the gel's fresh memory of that press (left out, the fitted
+/// weights read 1–2 % high).
+fn press_record(
+    data: &RunData,
+    speeds: &std::collections::BTreeMap<u32, f64>,
+    approach_speed: Option<f64>,
+) -> Option<PressRecord> {
+    let steps: Vec<&StepRow> = data
+        .steps
+        .iter()
+        .filter(|s| PRESSING_AXES.contains(&s.axis.as_str()) && s.position.is_some())
+        .collect();
+    let first = steps.first()?;
+    let mut knots = Vec::new();
+    let mut from_ns = first.t_start_ns;
+    if let Some(v) = approach_speed.filter(|v| *v > 0.0) {
+        let t0 = first.t_start_ns as f64 * 1e-9;
+        knots.push((t0 - APPROACH_S, -v * APPROACH_S));
+        from_ns = first.t_start_ns.saturating_sub((APPROACH_S * 1e9) as u64);
+    }
+    let mut last = 0.0;
+    let mut end_ns = first.t_start_ns;
+    for s in &steps {
+        let pos = s.position?;
+        if pos <= 0.0 {
+            break;
+        }
+        let settle_start = s
+            .settle_end_ns
+            .checked_sub((s.settle_s * 1e9) as u64)?
+            .max(s.t_start_ns);
+        let t0 = s.t_start_ns as f64 * 1e-9;
+        let t1 = match speeds.get(&s.step) {
+            Some(&v) if v > 0.0 => (t0 + (pos - last).abs() / v).min(settle_start as f64 * 1e-9),
+            _ => settle_start as f64 * 1e-9,
+        };
+        knots.push((t0, last));
+        knots.push((t1, pos));
+        last = pos;
+        end_ns = s.settle_end_ns;
+    }
+    if knots.is_empty() {
+        return None;
+    }
+    let (t_s, f_n): (Vec<f64>, Vec<f64>) = data
+        .force
+        .iter()
+        .filter(|r| r.t_ns >= from_ns && r.t_ns <= end_ns)
+        .map(|r| (r.t_ns as f64 * 1e-9, r.fz_n))
+        .unzip();
+    (t_s.len() >= 20).then_some(PressRecord {
+        t_s,
+        f_n,
+        depth_knots: knots,
+    })
+}
+
+/// Static and sliding friction from the runs' shear steps, with the static one's
+/// uncertainty (half the ratio's rise over the step that found slip).
+struct Friction {
+    static_mu: f64,
+    static_sd: f64,
+    sliding_mu: Option<f64>,
+    run: usize,
+}
+
+fn friction_of(runs: &[Run]) -> Option<Friction> {
+    runs.iter().enumerate().find_map(|(k, r)| {
+        let load: Vec<&StepRow> = r
+            .data
+            .steps
+            .iter()
+            .filter(|s| s.axis == "shear" && s.phase == "load" && s.position.is_some())
+            .collect();
+        let block = analysis::slip::Block {
+            load: load.iter().filter_map(|s| s.position).collect(),
+            tangential: load.iter().map(|s| s.fx_n.abs()).collect(),
+            normal_n: load.iter().map(|s| s.fz_n).collect(),
+            centre_over_edge: None,
+            contact_motion: None,
+        };
+        let report = analysis::slip::classify(&block, analysis::slip::Thresholds::default())?;
+        let onset = report.onset?;
+        let ratio = |i: usize| block.tangential[i] / block.normal_n[i].max(1e-9);
+        // The steps bracket the limit: it is above the last step that held, and below where
+        // the next step would have reached had it held (its ratio plus the last increment).
+        let held = (0..onset).max_by(|&a, &b| ratio(a).total_cmp(&ratio(b)))?;
+        let rise = if held > 0 {
+            (ratio(held) - ratio(held - 1)).max(0.0)
+        } else {
+            ratio(held)
+        };
+        let after: Vec<f64> = (onset + 1..block.load.len()).map(ratio).collect();
+        Some(Friction {
+            static_mu: ratio(held) + 0.5 * rise,
+            static_sd: 0.5 * rise,
+            sliding_mu: (!after.is_empty()).then(|| after.iter().sum::<f64>() / after.len() as f64),
+            run: k,
+        })
+    })
+}
+
+fn file(
+    runs: &[Run],
+    pressing: &[(usize, PressRecord)],
+    fit: &MaterialFit,
+    friction: Option<Friction>,
+    nu: f64,
+) -> MaterialFile {
+    let assumed = &runs[pressing[0].0].assumed;
+    let (mu, mu_kinetic) = match &friction {
+        Some(f) => (
+            f.static_mu,
+            Some(f.sliding_mu.unwrap_or(f.static_mu).min(f.static_mu)),
+        ),
+        None => (assumed.friction, assumed.kinetic_friction),
+    };
+    let material = MaterialSpec {
+        youngs_modulus: Pressure::new(fit.modulus_ratio.value),
+        poisson_ratio: nu,
+        friction: mu,
+        kinetic_friction: mu_kinetic,
+        prony: fit
+            .terms
+            .iter()
+            .map(|t| PronySpec {
+                weight: t.weight.value,
+                tau: Duration::new(t.tau_s.value),
+            })
+            .collect(),
+    };
+    let mut provenance = vec![
+        format!(
+            "youngs_modulus and prony: fitted to the whole force record of {} pressing run(s) \
+             ({} samples; {} Prony term(s) by BIC; the force record's lag behind the step log \
+             {:.4} ± {:.4} s)",
+            pressing.len(),
+            fit.samples,
+            fit.terms.len(),
+            fit.lag_s.value,
+            fit.lag_s.sd
+        ),
+        format!("poisson_ratio: held at the protocols' {nu} (a force record cannot tell E from ν)"),
+    ];
+    provenance.push(match &friction {
+        Some(f) => format!(
+            "friction: bracketed by the shear steps of {} — above the last step that held, \
+             below where the next would have reached (the middle, ± half the bracket); \
+             kinetic_friction: the mean tangential-to-normal ratio of the steps after slip",
+            runs[f.run].data.protocol_name
+        ),
+        None => format!(
+            "friction and kinetic_friction: held at the protocol's {} and {:?} (no run \
+             reached gross slip)",
+            assumed.friction, assumed.kinetic_friction
+        ),
+    });
+    let mut fitted_on: Vec<FittedRun> = runs
+        .iter()
+        .enumerate()
+        .filter_map(|(k, r)| {
+            let j = pressing.iter().position(|(i, _)| *i == k);
+            let sliding = friction.as_ref().is_some_and(|f| f.run == k);
+            (j.is_some() || sliding).then(|| FittedRun {
+                run: r
+                    .dir
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                protocol: r.data.protocol_name.clone(),
+                used_for: if j.is_some() { "pressing" } else { "sliding" }.into(),
+                contact_offset_mm: j.map(|j| fit.offsets_mm[j].value),
+                contact_offset_sd_mm: j.map(|j| fit.offsets_mm[j].sd),
+                residual_rms_n: j.map(|j| fit.residual_rms_n[j]),
+                samples: j.map(|j| pressing[j].1.t_s.len()),
+            })
+        })
+        .collect();
+    fitted_on.sort_by(|a, b| a.run.cmp(&b.run));
+    MaterialFile {
+        format: FORMAT.into(),
+        version: VERSION,
+        created: jiff::Timestamp::now().to_string(),
+        material,
+        uncertainty: Uncertainty {
+            youngs_modulus_mpa: fit.modulus_ratio.sd,
+            prony: fit
+                .terms
+                .iter()
+                .map(|t| TermUncertainty {
+                    weight: t.weight.sd,
+                    tau_s: t.tau_s.sd,
+                })
+                .collect(),
+            friction: friction.as_ref().map(|f| f.static_sd),
+        },
+        provenance,
+        fitted_on,
+    }
+}

@@ -1,0 +1,8 @@
+//! The user's own gel: a material fitted to a bench's runs (`gelrig fit-material`), its
+//! file, and how a protocol takes it in (`material: {from: MATERIAL.yaml}`).
+
+pub mod file;
+pub mod fit;
+
+pub use file::{MaterialFile, MaterialFileError};
+pub use fit::{FitError, fit};

@@ -1,0 +1,208 @@
+//! The user's own gel: `gelrig fit-material` on dry runs of a gel whose values it is not
+//! told, the fitted file taken by a protocol (`material: {from: …}`) so the dry run
+//! reproduces the source bench, the shipped example, and the refusals.
+
+use std::path::{Path, PathBuf};
+
+use experiments::material::MaterialFile;
+
+use crate::support::{csv_rows, gelrig, load_text, root, run_virtual, shipped_text};
+
+/// The source gel: none of the presets' values.
+const SOURCE: &str = "material: {youngs_modulus: 0.18 MPa, poisson_ratio: 0.49, friction: 0.35, \
+                      kinetic_friction: 0.3, prony: [{weight: 0.25, tau: 2 s}, {weight: 0.15, \
+                      tau: 20 s}]}";
+
+fn with_sensor(name: &str, sensor: &str) -> String {
+    let text = shipped_text(name);
+    let edited = text.replace("sensor: {kind: portable}", sensor);
+    assert_ne!(edited, text, "{name}'s sensor line changed");
+    edited
+}
+
+fn dry(dir: &Path, text: &str, seed: u64) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let loaded = load_text(dir, text).unwrap_or_else(|d| panic!("{}", d[0]));
+    let (o, _) = run_virtual(&loaded, dir, seed, None);
+    assert_eq!(
+        o.status,
+        rundir::write::Status::Completed,
+        "{:?}",
+        o.message
+    );
+    o.dir
+}
+
+fn within(got: f64, want: f64, rel: f64, what: &str) {
+    assert!(
+        (got / want - 1.0).abs() <= rel,
+        "{what}: fitted {got}, source {want} ({:+.2} %, allowed {:.0} %)",
+        100.0 * (got / want - 1.0),
+        100.0 * rel
+    );
+}
+
+#[test]
+fn fit_material_recovers_a_gel_it_was_not_told_and_its_dry_run_reproduces_the_bench() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sensor = format!("sensor: {{kind: portable, {SOURCE}}}");
+    let normal = dry(
+        &tmp.path().join("normal"),
+        &with_sensor("portable-normal", &sensor),
+        7,
+    );
+    let shear = dry(
+        &tmp.path().join("shear"),
+        &with_sensor("portable-shear", &sensor),
+        7,
+    );
+    let out = tmp.path().join("material.yaml");
+    let o = std::process::Command::new(gelrig())
+        .arg("fit-material")
+        .args([&normal, &shear])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("E∞ ="), "{stdout}");
+    let fitted = MaterialFile::read(&out).unwrap();
+    let m = &fitted.material;
+    // The targets: E∞ and the Prony weights within 2 %, the time constants within 5 %.
+    within(m.youngs_modulus.mpa(), 0.18, 0.02, "E∞");
+    assert_eq!(m.prony.len(), 2, "{m:?}");
+    for (t, (w, tau)) in m.prony.iter().zip([(0.25, 2.0), (0.15, 20.0)]) {
+        within(t.weight, w, 0.02, "a Prony weight");
+        within(t.tau.s(), tau, 0.05, "a time constant");
+    }
+    assert_eq!(m.poisson_ratio, 0.49, "ν is held");
+    // Friction: the source's within the bracket the steps give, the sliding one within 5 %.
+    let sd = fitted.uncertainty.friction.expect("the shear run slipped");
+    assert!(
+        (m.friction - 0.35).abs() <= sd + 0.005,
+        "μ {} ± {sd}, source 0.35",
+        m.friction
+    );
+    within(m.kinetic_friction.unwrap(), 0.3, 0.05, "sliding μ");
+    // Every fitted value carries an uncertainty, and the fit says how well it follows.
+    assert!(fitted.uncertainty.youngs_modulus_mpa > 0.0);
+    let pressing: Vec<_> = fitted
+        .fitted_on
+        .iter()
+        .filter(|r| r.used_for == "pressing")
+        .collect();
+    assert_eq!(pressing.len(), 2, "{:?}", fitted.fitted_on);
+    for r in &pressing {
+        assert!(r.residual_rms_n.unwrap() < 0.05, "{r:?}");
+        // The approach stops at 0.1 N: the surface lies a little before the origin.
+        let d0 = r.contact_offset_mm.unwrap();
+        assert!(d0 < 0.0 && d0 > -0.01, "{r:?}");
+    }
+    // The fitted gel, taken by a protocol, reproduces the source run's quasistatic steps
+    // within the force sensor's noise (same seed: same noise draws).
+    let refit_dir = tmp.path().join("refit");
+    std::fs::create_dir_all(&refit_dir).unwrap();
+    std::fs::copy(&out, refit_dir.join("gel.yaml")).unwrap();
+    let refit = dry(
+        &refit_dir,
+        &with_sensor(
+            "portable-normal",
+            "sensor: {kind: portable, material: {from: gel.yaml}}",
+        ),
+        7,
+    );
+    let (src, again) = (
+        csv_rows(&normal.join("steps.csv")),
+        csv_rows(&refit.join("steps.csv")),
+    );
+    assert_eq!(src.len(), again.len());
+    for (a, b) in src.iter().zip(&again) {
+        let num = |r: &std::collections::BTreeMap<String, String>, k: &str| -> f64 {
+            r[k].parse().unwrap()
+        };
+        let noise = num(a, "window_std");
+        assert!(
+            (num(a, "fz_n") - num(b, "fz_n")).abs() < noise,
+            "step {}: {} N from the source gel, {} N from the fitted one (noise {noise} N)",
+            a["step"],
+            a["fz_n"],
+            b["fz_n"]
+        );
+    }
+    // The run records the values, not the path: its protocol.yaml reads back alone.
+    let kept = std::fs::read_to_string(refit.join("protocol.yaml")).unwrap();
+    assert!(
+        !kept.contains("gel.yaml") && kept.contains("youngs_modulus"),
+        "{kept}"
+    );
+}
+
+#[test]
+fn the_shipped_fitted_material_recovers_the_gel_it_came_from() {
+    let path = root().join("protocols/materials/portable-fitted.yaml");
+    let fitted = MaterialFile::read(&path).unwrap();
+    let m = &fitted.material;
+    // Fitted (README, "The user's own gel") on dry runs of the SOURCE gel above.
+    within(m.youngs_modulus.mpa(), 0.18, 0.02, "E∞");
+    for (t, (w, tau)) in m.prony.iter().zip([(0.25, 2.0), (0.15, 20.0)]) {
+        within(t.weight, w, 0.02, "a Prony weight");
+        within(t.tau.s(), tau, 0.05, "a time constant");
+    }
+    // And a protocol takes it.
+    let tmp = tempfile::tempdir().unwrap();
+    let text = with_sensor(
+        "portable-normal",
+        &format!(
+            "sensor: {{kind: portable, material: {{from: {}}}}}",
+            path.display()
+        ),
+    );
+    let loaded = load_text(tmp.path(), &text).unwrap_or_else(|d| panic!("{}", d[0]));
+    let spec = experiments::protocol::plant_spec(&loaded.protocol, &loaded.compiled).unwrap();
+    assert_eq!(
+        spec.contact.material.youngs_modulus_mpa,
+        m.youngs_modulus.mpa()
+    );
+}
+
+#[test]
+fn a_material_from_a_file_that_is_not_one_is_refused_at_its_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("notes.yaml"), "just: notes\n").unwrap();
+    for (from, says) in [
+        ("missing.yaml", "No such file"),
+        ("notes.yaml", "not a material file"),
+    ] {
+        let text = with_sensor(
+            "portable-normal",
+            &format!("sensor: {{kind: portable, material: {{from: {from}}}}}"),
+        );
+        let e = load_text(tmp.path(), &text).unwrap_err();
+        let shown = e[0].to_string();
+        assert!(
+            shown.contains(says) && shown.contains("fit-material"),
+            "{shown}"
+        );
+    }
+    // `from:` stands alone.
+    let text = with_sensor(
+        "portable-normal",
+        "sensor: {kind: portable, material: {from: gel.yaml, friction: 0.3}}",
+    );
+    let e = load_text(tmp.path(), &text).unwrap_err();
+    assert!(
+        e[0].to_string().contains("unknown field `friction`"),
+        "{}",
+        e[0]
+    );
+    // No run to fit: a clear refusal.
+    let o = std::process::Command::new(gelrig())
+        .args(["fit-material", "/nonexistent/run", "--out"])
+        .arg(tmp.path().join("m.yaml"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("fix:"), "{err}");
+}

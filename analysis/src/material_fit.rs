@@ -186,7 +186,7 @@ fn bases(
                 let e = elastic(tp);
                 for (hv, &tau) in h.iter_mut().zip(taus) {
                     let x = dt / tau;
-                    let ramp = if x < 1e-300 { 1.0 } else { -(-x).exp_m1() / x };
+                    let ramp = mechanics::ramp_factor(x);
                     *hv = (-x).exp() * *hv + ramp * (e - e_prev);
                 }
                 e_prev = e;

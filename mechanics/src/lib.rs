@@ -31,7 +31,7 @@ pub mod solve;
 pub mod viscoelastic;
 
 pub use geometry::{Indenter, Layer, Material};
-pub use viscoelastic::{Prony, PronyState, PronyTerm};
+pub use viscoelastic::{Prony, PronyState, PronyTerm, ramp_factor};
 
 /// Why a mechanics computation refused its input.
 ///

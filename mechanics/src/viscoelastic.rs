@@ -80,6 +80,13 @@ impl Prony {
     }
 }
 
+/// (1 − e^{−x})/x: what a Prony term keeps of a change applied as a ramp over x = Δt/τ
+/// (rather than a jump at its start; spec §3, "strain linear over the step"). `-expm1(-x)/x`
+/// keeps full precision as x → 0 (the jump's 1) and tends to 0 as x → ∞.
+pub fn ramp_factor(x: f64) -> f64 {
+    if x < 1e-300 { 1.0 } else { -(-x).exp_m1() / x }
+}
+
 /// Hereditary state of one loaded quantity: the driving elastic value and one internal
 /// variable per Prony term.
 #[derive(Debug, Clone, PartialEq)]
@@ -108,7 +115,7 @@ impl PronyState {
         let delta = new_driving - self.driving;
         for (h, term) in self.h.iter_mut().zip(prony.terms()) {
             let x = dt_s.max(0.0) / term.tau_s;
-            let ramp = if x < 1e-300 { 1.0 } else { -(-x).exp_m1() / x };
+            let ramp = ramp_factor(x);
             *h = (-x).exp() * *h + term.weight * ramp * delta;
         }
         self.driving = new_driving;
@@ -124,7 +131,7 @@ impl PronyState {
         let (mut gain, mut offset) = (1.0, 0.0);
         for (h, term) in self.h.iter().zip(prony.terms()) {
             let x = dt_s.max(0.0) / term.tau_s;
-            let ramp = if x < 1e-300 { 1.0 } else { -(-x).exp_m1() / x };
+            let ramp = ramp_factor(x);
             gain += term.weight * ramp;
             offset += (-x).exp() * h - term.weight * ramp * self.driving;
         }

@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 
 use experiments::material::MaterialFile;
 
-use crate::support::{csv_rows, gelrig, load_text, root, run_virtual, shipped_text};
+use crate::support::{
+    csv_rows, gelrig, load_text, root, run_virtual, shared_dry_run, shipped_text,
+};
 
 /// The source gel: none of the presets' values.
 const SOURCE: &str = "material: {youngs_modulus: 0.18 MPa, poisson_ratio: 0.49, friction: 0.35, \
@@ -196,6 +198,32 @@ fn a_material_from_a_file_that_is_not_one_is_refused_at_its_line() {
         "{}",
         e[0]
     );
+    // One gel per fit; and a grasp's grip position is not the gel's depth (the sponge is in
+    // series), so a grasp run gives nothing to fit.
+    for (runs, says) in [
+        (
+            vec![
+                shared_dry_run("portable-normal"),
+                shared_dry_run("box-normal-flat"),
+            ],
+            "one gel per fit",
+        ),
+        (
+            vec![shared_dry_run("lifting-can-slip")],
+            "none of the runs presses the gel",
+        ),
+    ] {
+        let o = std::process::Command::new(gelrig())
+            .arg("fit-material")
+            .args(&runs)
+            .arg("--out")
+            .arg(tmp.path().join("m.yaml"))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(says) && err.contains("fix:"), "{err}");
+    }
     // No run to fit: a clear refusal.
     let o = std::process::Command::new(gelrig())
         .args(["fit-material", "/nonexistent/run", "--out"])

@@ -222,7 +222,7 @@ pub fn elastic_of(prony: &Prony, t_ns: &[u64], f: &[f64]) -> Vec<f64> {
             .iter()
             .map(|term| {
                 let x = dt_s / term.tau_s;
-                let ramp = if x < 1e-300 { 1.0 } else { -(-x).exp_m1() / x };
+                let ramp = mechanics::ramp_factor(x);
                 ((-x).exp(), term.weight * ramp)
             })
             .collect();

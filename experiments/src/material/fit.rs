@@ -44,6 +44,8 @@ struct Run {
     data: RunData,
     /// The material its protocol assumed.
     assumed: MaterialSpec,
+    /// The sensor's kind (`box`, `portable`).
+    sensor: String,
     /// Each step's move speed, axis unit/s (the protocol's).
     speeds: std::collections::BTreeMap<u32, f64>,
     /// The speed of the approach that found the contact on a pressing axis, mm/s.
@@ -66,15 +68,31 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
     for dir in runs {
         read.push(read_one(dir)?);
     }
+    if let Some(r) = read.iter().find(|r| r.sensor != read[0].sensor) {
+        return Err(unfit(
+            &r.dir,
+            format!(
+                "a {} sensor's run, but {} is of a {} sensor: one gel per fit",
+                r.sensor,
+                read[0].dir.display(),
+                read[0].sensor
+            ),
+            "fit each sensor's gel on its own runs",
+        ));
+    }
+    // A resumed run was unloaded, re-homed and pressed again between its segments: its
+    // depth history is not the step log's.
     let pressing: Vec<(usize, PressRecord)> = read
         .iter()
         .enumerate()
+        .filter(|(_, r)| r.data.manifest.resumed.is_empty())
         .filter_map(|(k, r)| Some((k, press_record(&r.data, &r.speeds, r.approach_speed)?)))
         .collect();
     if pressing.is_empty() {
         return Err(unfit(
             first,
-            "none of the runs presses the gel in held steps with a force record",
+            "none of the runs presses the gel in held steps with a force record (a resumed \
+             run does not count: its depth history broke where it was resumed)",
             "fit on stepped `normal` runs recorded with `record: {force: 20 Hz}` (e.g. \
              protocols/portable-normal.yaml)",
         ));
@@ -184,10 +202,12 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
         }
         _ => None,
     });
+    let sensor = format!("{:?}", loaded.protocol.sensor.kind).to_lowercase();
     Ok(Run {
         dir: dir.to_path_buf(),
         data,
         assumed,
+        sensor,
         speeds,
         approach_speed,
         unit_force,
@@ -208,8 +228,9 @@ fn interp((d, f): &(Vec<f64>, Vec<f64>), x: f64) -> f64 {
 /// How much of the approach before the first step the record keeps, s.
 const APPROACH_S: f64 = 5.0;
 
-/// Axes that press the gel.
-const PRESSING_AXES: [&str; 2] = ["normal", "grip"];
+/// The axis whose position is the gel's depth. Not `grip`: in a grasp jig the grip's
+/// closure is shared with the sponge in series, so its position is not the gel's depth.
+const PRESSING_AXES: [&str; 1] = ["normal"];
 
 /// The run's pressing record: its held steps on a pressing axis, the commanded depth as a
 /// ramp from each step's start at the protocol's speed (the stage moves at constant speed;

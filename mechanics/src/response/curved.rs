@@ -90,25 +90,17 @@ impl ContactModel {
     /// the depth moved.
     pub(super) fn curved_field_pressure(&mut self, op: &LayerOperator, depth_mm: f64) -> Vec<f64> {
         let h = self.spec.contact.layer.thickness_mm;
-        let x = (depth_mm / h * 200.0).max(0.0);
-        let lo = x.floor() as u64;
-        let w = x - lo as f64;
-        let mut at = |key: u64| -> Vec<f64> {
-            if key == 0 {
-                return vec![0.0; op.grid().len()];
+        let mut out = vec![0.0; op.grid().len()];
+        for (d, w) in self.depth_buckets(depth_mm) {
+            let key = (d / h * 200.0).round() as u64;
+            if !self.field_pressure.contains_key(&key) {
+                let p = self.pressure_on(op, key as f64 / 200.0 * h);
+                self.field_pressure.insert(key, p);
             }
             if let Some(p) = self.field_pressure.get(&key) {
-                return p.clone();
+                out.iter_mut().zip(p).for_each(|(o, v)| *o += w * v);
             }
-            let p = self.pressure_on(op, key as f64 / 200.0 * h);
-            self.field_pressure.insert(key, p.clone());
-            p
-        };
-        let p0 = at(lo);
-        if w < 1e-9 {
-            return p0;
         }
-        let p1 = at(lo + 1);
-        p0.iter().zip(&p1).map(|(a, b)| a + w * (b - a)).collect()
+        out
     }
 }

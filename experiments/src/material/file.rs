@@ -125,7 +125,10 @@ impl MaterialFile {
             .map_err(|e| err(format!("not a material file: {e}"), FIX))?;
         if h.format.as_deref() != Some(FORMAT) {
             return Err(err(
-                format!("not a material file (format: {:?})", h.format),
+                format!(
+                    "not a material file (its format is {}, not {FORMAT})",
+                    h.format.as_deref().unwrap_or("missing")
+                ),
                 FIX,
             ));
         }
@@ -137,7 +140,15 @@ impl MaterialFile {
                     "update gelrig, or fit the material again with this one",
                 ));
             }
-            v => return Err(err(format!("unknown version {v:?}"), FIX)),
+            v => {
+                return Err(err(
+                    format!(
+                        "version {} is not one this gelrig reads ({VERSION})",
+                        v.map_or_else(|| "missing".to_string(), |v| v.to_string())
+                    ),
+                    FIX,
+                ));
+            }
         }
         let file: Self = serde_yaml::from_str(&text).map_err(|e| err(e.to_string(), FIX))?;
         file.check().map_err(|d| err(d, FIX))?;

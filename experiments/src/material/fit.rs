@@ -393,9 +393,12 @@ fn file(
             runs[f.run].data.protocol_name
         ),
         None => format!(
-            "friction and kinetic_friction: held at the protocol's {} and {:?} (no run \
+            "friction and kinetic_friction: held at the protocol's {} and {} (no run \
              reached gross slip)",
-            assumed.friction, assumed.kinetic_friction
+            assumed.friction,
+            assumed
+                .kinetic_friction
+                .map_or_else(|| "its default".to_string(), |k| k.to_string())
         ),
     });
     let mut fitted_on: Vec<FittedRun> = runs

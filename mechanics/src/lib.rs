@@ -28,6 +28,7 @@ pub mod pressing;
 pub mod punch;
 pub mod response;
 pub mod solve;
+pub mod unloading;
 pub mod viscoelastic;
 
 pub use geometry::{Indenter, Layer, Material};

@@ -8,29 +8,23 @@
 //! Needs `python3` with `scikit-fem` (`.ci/run` installs it). Where it is missing the test
 //! prints a visible skip line — unless `GELRIG_REQUIRE_PEERS=1` (set by CI).
 
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 use mechanics::contact::Contact;
 use mechanics::geometry::presets;
 use mechanics::response::{ContactModel, ModelSpec, Quality, State};
 use mechanics::{Indenter, Layer, Material};
 
-use crate::support::root;
+use crate::support::{python_peer, root};
 
 /// The oracle's summary for a punch of radius `a_mm` on a layer `h_mm` thick (`extra`: more
 /// arguments, e.g. a finite pad's), or `None` (with the skip line) where it cannot run.
 fn oracle(a_mm: f64, h_mm: f64, nu: f64, extra: &[&str]) -> Option<serde_json::Value> {
-    let available = Command::new("python3")
-        .args(["-c", "import skfem, scipy"])
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !available {
-        let what = "python3 with scikit-fem";
-        if std::env::var("GELRIG_REQUIRE_PEERS").is_ok_and(|v| v == "1") {
-            panic!("the finite-element oracle needs {what} (GELRIG_REQUIRE_PEERS=1)");
-        }
-        println!("SKIP: the finite-element oracle needs {what}; pip install scikit-fem");
+    if !python_peer(
+        "import skfem, scipy",
+        "python3 with scikit-fem",
+        "pip install scikit-fem",
+    ) {
         return None;
     }
     let out = Command::new("python3")

@@ -27,5 +27,6 @@ mod signals;
 mod support;
 mod timing;
 mod track;
+mod unloading;
 mod validate;
 mod wire;

@@ -362,3 +362,21 @@ pub(crate) fn mini_press_dir() -> Option<PathBuf> {
     );
     None
 }
+
+/// Whether `python3` can `import_line` (e.g. `import numpy, scipy`) for an independent peer
+/// needing `what`; where it cannot, a visible skip line — or a failure under
+/// `GELRIG_REQUIRE_PEERS=1` (set by CI), where a missing peer must not pass silently.
+pub(crate) fn python_peer(import_line: &str, what: &str, install: &str) -> bool {
+    let available = Command::new("python3")
+        .args(["-c", import_line])
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !available {
+        if std::env::var("GELRIG_REQUIRE_PEERS").is_ok_and(|v| v == "1") {
+            panic!("this test needs {what} (GELRIG_REQUIRE_PEERS=1)");
+        }
+        println!("SKIP: this test needs {what}; {install}");
+    }
+    available
+}

@@ -6,7 +6,8 @@
 //! opened, fields only if the camera is). On top of it:
 //! - **viscoelasticity**: every channel's elastic (long-term) force drives a Prony
 //!   hereditary state with the exact exponential update, so a step relaxes and loading
-//!   sits above unloading (Lee–Radok form, spec §3);
+//!   sits above unloading (Lee–Radok form, spec §3); a curved indenter's normal force
+//!   follows Ting's treatment instead, its contact shrinking on unloading ([`normal`]);
 //! - **friction**: shear and twist go through Masing friction elements on the solver's
 //!   partial-slip backbones, saturate at the static limit μP, slide at the kinetic limit and
 //!   stick again when the stage stops (the stick-slip steps of thesis Fig. 4-16);
@@ -21,7 +22,8 @@ use std::f64::consts::PI;
 use mechanics::contact::Contact;
 use mechanics::friction::{Backbone, FrictionElement};
 use mechanics::response::{ContactModel, ModelSpec, Quality, State};
-use mechanics::{Prony, PronyState, PronyTerm};
+use mechanics::unloading::TingContact;
+use mechanics::{Indenter, Prony, PronyState, PronyTerm};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
@@ -205,7 +207,13 @@ pub(crate) struct Plant {
     model: ContactModel,
     axes: BTreeMap<AxisRole, AxisState>,
     t_ns: u64,
+    /// The gel's normal force's hereditary state (Lee–Radok on the elastic force); with a
+    /// curved indenter, only the rigid base's part ([`normal`]).
     normal: PronyState,
+    /// A curved indenter's contact, whose area shrinks on unloading (Ting's treatment).
+    ting: Option<TingContact>,
+    /// The normal force after the last step, N.
+    normal_n: f64,
     shear: Option<Channel>,
     twist: Option<Channel>,
     needs: PlantNeeds,
@@ -251,6 +259,21 @@ impl Plant {
             quality: spec.quality,
         })
         .map_err(|e| RigError::Plant(e.to_string()))?;
+        // A sphere pressed by a stage: its contact shrinks when the stage backs off. (A
+        // grasp's gel balances the sponge through Lee–Radok's affine step.)
+        let curved = matches!(
+            spec.contact.indenter,
+            Indenter::Sphere { .. } | Indenter::Cylinder { .. }
+        );
+        let ting = (curved && !grasping)
+            .then(|| {
+                // A quarter beyond the deepest depth: the foundation's top elements (a
+                // one-sided derivative of F_e) stay clear of the protocol's depths.
+                let cap = (1.25 * spec.max_depth_mm)
+                    .min(BASE_CONTACT_FRACTION * spec.contact.layer.thickness_mm);
+                TingContact::new(|d| model.normal_force_n(d), cap, &prony)
+            })
+            .flatten();
         let mut rng = StdRng::seed_from_u64(seed);
         let b = geometry.force_bias_n;
         let mut draw = |scale: f64| (rng.random::<f64>() * 2.0 - 1.0) * b * scale;
@@ -264,6 +287,8 @@ impl Plant {
         };
         let mut plant = Self {
             normal: prony.state(),
+            ting,
+            normal_n: 0.0,
             prony,
             model,
             spec,
@@ -494,7 +519,7 @@ impl Plant {
             .to_radians();
         if d <= 0.0 {
             // Out of contact: the elastomer recovers; tangential loads vanish with contact.
-            self.normal.advance_linear(&self.prony, dt_s, 0.0);
+            self.advance_normal(d, dt_s);
             self.shear = None;
             self.twist = None;
             self.in_contact = false;
@@ -517,8 +542,7 @@ impl Plant {
             self.twist = self.needs.twist.then(|| fresh(twist_pos, &self.prony));
         }
         let f_e = self.elastic_normal_n(d);
-        self.normal.advance_linear(&self.prony, dt_s, f_e);
-        let p = self.normal.value().max(0.0);
+        let p = self.advance_normal(d, dt_s);
         let mu = self.spec.contact.material.friction;
         let kinetic = if mu > 0.0 {
             (self.spec.kinetic_friction / mu).clamp(0.0, 1.0)
@@ -569,7 +593,7 @@ impl Plant {
             return Wrench {
                 fx_n: 0.0,
                 fy_n: l.sponge_n,
-                fz_n: self.normal.value().max(0.0),
+                fz_n: self.normal_n,
                 tx_nmm: 0.0,
                 ty_nmm: 0.0,
                 tz_nmm: l.sponge_nmm,
@@ -592,7 +616,7 @@ impl Plant {
         Wrench {
             fx_n: fx,
             fy_n: fy,
-            fz_n: self.normal.value().max(0.0),
+            fz_n: self.normal_n,
             tx_nmm: tx,
             ty_nmm: ty,
             tz_nmm: tz,
@@ -766,5 +790,6 @@ impl Plant {
 
 mod depth;
 mod grasping;
+mod normal;
 #[cfg(test)]
 mod tests;

@@ -18,6 +18,7 @@
 pub mod contact;
 pub mod fft2;
 pub mod field;
+pub mod finite_strain;
 pub mod friction;
 pub mod geometry;
 pub mod greens;

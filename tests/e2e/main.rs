@@ -8,6 +8,7 @@ mod bonded_punch;
 mod dry_run;
 mod export;
 mod faults;
+mod finite_strain;
 mod force_sensing;
 mod fuzz;
 mod grasp;

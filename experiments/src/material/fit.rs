@@ -165,6 +165,13 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
         .as_ref()
         .and_then(|s| s.pressing_friction)
         .unwrap_or(false);
+    let finite_strain = loaded
+        .rig
+        .sim
+        .as_ref()
+        .and_then(|s| s.finite_strain)
+        .unwrap_or(false);
+    let h = spec.contact.layer.thickness_mm;
     // The layer's force at 1 MPa: the contact model is linear in the modulus.
     let mut contact = spec.contact.clone();
     contact.material.youngs_modulus_mpa = 1.0;
@@ -182,7 +189,19 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
     })
     .ok()
     .map(|m| {
-        let f: Vec<f64> = depths.iter().map(|&d| m.normal_force_n(d)).collect();
+        // The bench's own force law: at finite strain where its rig presses so.
+        let f: Vec<f64> = depths
+            .iter()
+            .map(|&d| {
+                let s = if finite_strain && m.is_flat() {
+                    let a = m.contact_radius_mm(d);
+                    mechanics::finite_strain::flat_punch_stiffening(d / h, a / h)
+                } else {
+                    1.0
+                };
+                m.normal_force_n(d) * s
+            })
+            .collect();
         (depths, f)
     });
     let speeds = loaded

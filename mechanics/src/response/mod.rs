@@ -397,6 +397,11 @@ impl ContactModel {
         &self.spec.contact
     }
 
+    /// Whether the indenter is a flat punch (its face's area fixed).
+    pub fn is_flat(&self) -> bool {
+        matches!(self.normal, Normal::Flat { .. })
+    }
+
     /// Long-term elastic normal force at `depth_mm`, N (zero without contact).
     pub fn normal_force_n(&self, depth_mm: f64) -> f64 {
         if depth_mm <= 0.0 {

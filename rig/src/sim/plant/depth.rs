@@ -84,10 +84,19 @@ impl Plant {
         }
     }
 
-    /// Long-term elastic normal force at depth `d`, saturating on the rigid base.
+    /// Long-term elastic normal force at depth `d`, saturating on the rigid base; a flat
+    /// punch at finite strain where the rig asks for it ([`mechanics::finite_strain`]).
     pub(super) fn elastic_normal_n(&self, d: f64) -> f64 {
         let h = self.spec.contact.layer.thickness_mm;
         let d_max = BASE_CONTACT_FRACTION * h;
-        self.model.normal_force_n(d.min(d_max)) + BASE_STIFFNESS_N_PER_MM * (d - d_max).max(0.0)
+        let d_el = d.min(d_max);
+        let stiffening = if self.geometry.finite_strain && self.model.is_flat() {
+            let a = self.model.contact_radius_mm(d_el);
+            mechanics::finite_strain::flat_punch_stiffening(d_el / h, a / h)
+        } else {
+            1.0
+        };
+        self.model.normal_force_n(d_el) * stiffening
+            + BASE_STIFFNESS_N_PER_MM * (d - d_max).max(0.0)
     }
 }

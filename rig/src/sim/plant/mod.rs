@@ -87,6 +87,8 @@ pub(crate) struct BenchGeometry {
     pub noise: bool,
     /// Flat punches pressed with friction (`sim: {pressing_friction: true}`).
     pub pressing_friction: bool,
+    /// Flat punches pressed at finite strain (`sim: {finite_strain: true}`).
+    pub finite_strain: bool,
 }
 
 impl BenchGeometry {
@@ -108,6 +110,7 @@ impl BenchGeometry {
             force_bias_n: sim.force_bias.map(|f| f.n()).unwrap_or(0.0),
             noise: sim.noise.unwrap_or(true),
             pressing_friction: sim.pressing_friction.unwrap_or(false),
+            finite_strain: sim.finite_strain.unwrap_or(false),
         })
     }
 }

@@ -6,12 +6,12 @@
 //! The oracle needs `python3` with `scikit-fem` (`.ci/run` installs it); where it is missing
 //! the rerun prints a visible skip line — unless `GELRIG_REQUIRE_PEERS=1` (set by CI).
 
-use std::process::Command;
-
 use experiments::protocol::load;
 use mechanics::finite_strain::{flat_punch_reference, flat_punch_stiffening};
 
-use crate::support::{col, csv_rows, protocol, python_peer, root, run_virtual, shared_dry_run};
+use crate::support::{
+    col, csv_rows, peer_json, protocol, python_peer, root, run_virtual, shared_dry_run,
+};
 
 fn ratios(case: &serde_json::Value) -> Vec<(f64, f64)> {
     case["depths"]
@@ -65,22 +65,11 @@ fn the_finite_strain_reference_is_the_simulators_table_and_reruns() {
     ) {
         return;
     }
-    let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("finite.json");
-    let run = Command::new("python3")
-        .arg(root().join("tests/peers/layer_finite_strain_fe.py"))
-        .arg("--quick")
-        .arg("--json")
-        .arg(&out)
-        .output()
-        .expect("python3");
-    assert!(
-        run.status.success(),
-        "the oracle failed: {}",
-        String::from_utf8_lossy(&run.stderr)
+    let rerun = peer_json(
+        "tests/peers/layer_finite_strain_fe.py",
+        &["--quick"],
+        "--json",
     );
-    let rerun: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).expect("JSON")).expect("JSON");
     assert_eq!(rerun["self_checks_passed"], true);
     for (name, a_over_h) in [("box", 4.75 / 4.2), ("portable", 6.25 / 2.0)] {
         for (e, r) in ratios(&stuck(&rerun, name)) {

@@ -380,3 +380,25 @@ pub(crate) fn python_peer(import_line: &str, what: &str, install: &str) -> bool 
     }
     available
 }
+
+/// Runs the peer script `script` (under the repository) with `args`, asking it to write its
+/// JSON to a temporary file with `out_flag`, and returns that JSON; panics with the
+/// script's stderr when it fails.
+pub(crate) fn peer_json(script: &str, args: &[&str], out_flag: &str) -> serde_json::Value {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("peer.json");
+    let run = Command::new("python3")
+        .arg(root().join(script))
+        .args(args)
+        .arg(out_flag)
+        .arg(&out)
+        .output()
+        .expect("python3");
+    assert!(
+        run.status.success(),
+        "{script} failed: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let text = std::fs::read_to_string(&out).expect("the peer's JSON");
+    serde_json::from_str(&text).expect("JSON")
+}

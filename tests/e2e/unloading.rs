@@ -10,12 +10,10 @@
 //! Needs `python3` with `numpy` and `scipy` (`.ci/run` installs them). Where they are missing
 //! the test prints a visible skip line — unless `GELRIG_REQUIRE_PEERS=1` (set by CI).
 
-use std::process::Command;
-
 use mechanics::unloading::TingContact;
 use mechanics::{Prony, PronyTerm};
 
-use crate::support::{python_peer, root};
+use crate::support::{peer_json, python_peer};
 
 /// The oracle's cases, or `None` (with the skip line) where it cannot run.
 fn oracle() -> Option<serde_json::Value> {
@@ -26,22 +24,11 @@ fn oracle() -> Option<serde_json::Value> {
     ) {
         return None;
     }
-    let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("unloading.json");
-    let run = Command::new("python3")
-        .arg(root().join("tests/peers/viscoelastic_sphere_unloading.py"))
-        .arg("--quick")
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("python3");
-    assert!(
-        run.status.success(),
-        "the oracle failed: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let text = std::fs::read_to_string(&out).expect("the oracle's JSON");
-    Some(serde_json::from_str(&text).expect("JSON"))
+    Some(peer_json(
+        "tests/peers/viscoelastic_sphere_unloading.py",
+        &["--quick"],
+        "--out",
+    ))
 }
 
 fn floats(v: &serde_json::Value) -> Vec<f64> {

@@ -27,8 +27,10 @@
 //! Each element is a generalised Maxwell body with the gel's normalised relaxation
 //! G(t) = 1 + Σ wᵢ e^{−t/τᵢ}: force f = w + Σ wᵢ sᵢ (w its indentation, sᵢ the stretch of the
 //! i-th Maxwell spring), advanced over a step with w linear in time, sᵢ ← e^{−x}sᵢ +
-//! r(x)·Δw, x = Δt/τᵢ, r the ramp factor ([`crate::ramp_factor`]) — the same exact update as
-//! [`crate::PronyState`].
+//! r(x)·Δw, x = Δt/τᵢ, r the ramp factor ([`crate::ramp_factor`]) — for a pressed element the
+//! same exact update as [`crate::PronyState`]. A free element's indentation is not linear in
+//! time (it creeps back exponentially), so a step is cut into pieces of at most a tenth of
+//! the shortest τ, over which the linear update is accurate to well under 1 %.
 
 use crate::viscoelastic::{Prony, ramp_factor};
 
@@ -48,6 +50,8 @@ pub struct TingContact {
     touching: Vec<bool>,
     weights: Vec<f64>,
     taus_s: Vec<f64>,
+    /// The depth at the end of the last step, mm.
+    depth_mm: f64,
 }
 
 /// Elements of the foundation: the force's discretisation error is below 1e-4 of F_e.
@@ -89,7 +93,11 @@ impl TingContact {
                 let x = (k as f64 + 0.5) * dx;
                 let j = a.partition_point(|v| *v < x).clamp(1, m);
                 let (a0, a1) = (a[j - 1], a[j]);
-                let t = if a1 > a0 { (x - a0) / (a1 - a0) } else { 0.0 };
+                let t = if a1 > a0 {
+                    ((x - a0) / (a1 - a0)).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
                 depths[j - 1] + t * (depths[j] - depths[j - 1])
             })
             .collect();
@@ -109,12 +117,32 @@ impl TingContact {
             touching: vec![false; ELEMENTS],
             weights: prony.terms().iter().map(|t| t.weight).collect(),
             taus_s: prony.terms().iter().map(|t| t.tau_s).collect(),
+            depth_mm: 0.0,
         })
     }
 
     /// Advances the state by `dt_s` to depth `depth_mm` (the depth moving linearly over the
     /// step); returns the force, N.
     pub fn step(&mut self, depth_mm: f64, dt_s: f64) -> f64 {
+        let dt = if dt_s.is_finite() { dt_s.max(0.0) } else { 0.0 };
+        let tau_min = self.taus_s.iter().copied().fold(f64::INFINITY, f64::min);
+        let pieces = if tau_min.is_finite() && dt > 0.0 {
+            (dt / (0.1 * tau_min)).ceil().clamp(1.0, 1e6) as usize
+        } else {
+            1
+        };
+        let d0 = self.depth_mm;
+        let mut f = 0.0;
+        for j in 1..=pieces {
+            let d = d0 + (depth_mm - d0) * j as f64 / pieces as f64;
+            f = self.piece(d, dt / pieces as f64);
+        }
+        self.depth_mm = depth_mm;
+        f
+    }
+
+    /// One piece of [`Self::step`].
+    fn piece(&mut self, depth_mm: f64, dt_s: f64) -> f64 {
         let nt = self.weights.len();
         let decay: Vec<(f64, f64)> = self
             .taus_s

@@ -107,4 +107,43 @@ fn bad_laws_are_refused() {
     assert!(TingContact::new(hertz, 0.0, &prony).is_none());
     assert!(TingContact::new(|_| 0.0, 0.05, &prony).is_none());
     assert!(TingContact::new(|_| f64::NAN, 0.05, &prony).is_none());
+    assert!(TingContact::new(|d| -d, 0.05, &prony).is_none());
+}
+
+/// A law that rises from zero with a finite slope (a line contact's): no element is pressed
+/// at or above the surface, before or after a load.
+#[test]
+fn nothing_is_pressed_out_of_contact() {
+    let prony = gel();
+    let mut ting = TingContact::new(|d| 3.0 * d + 10.0 * d * d, 0.5, &prony).expect("foundation");
+    assert_eq!(ting.step(0.0, 0.1), 0.0);
+    assert_eq!(ting.step(-0.1, 0.1), 0.0);
+    for k in (0..=50).chain((0..=50).rev()) {
+        ting.step(0.5 * k as f64 / 50.0, 0.05);
+    }
+    assert_eq!(ting.step(0.0, 0.1), 0.0);
+    assert_eq!(ting.touching_elements(), 0);
+}
+
+/// Let go and left alone, the gel creeps back whether the time passes in one step or in many:
+/// the recovery does not depend on how often the plant is sampled.
+#[test]
+fn recovery_does_not_depend_on_the_step() {
+    let prony = gel();
+    let run = |idle_steps: usize| {
+        let mut ting = TingContact::new(hertz, 0.05, &prony).expect("foundation");
+        for k in 1..=100 {
+            ting.step(0.05 * k as f64 / 100.0, 0.01);
+        }
+        for k in (0..100).rev() {
+            ting.step(0.05 * k as f64 / 100.0, 0.001);
+        }
+        for _ in 0..idle_steps {
+            ting.step(0.0, 5.0 / idle_steps as f64);
+        }
+        // Pressed again: how far the gel has come back decides the force.
+        ting.step(0.02, 0.01)
+    };
+    let (one, many) = (run(1), run(500));
+    assert!((one - many).abs() < 0.01 * many, "{one} vs {many}");
 }

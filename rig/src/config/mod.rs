@@ -230,8 +230,9 @@ pub struct SimConfig {
     pub pressing_friction: Option<bool>,
     /// Press flat punches into a neo-Hookean gel at finite strain: the force times the
     /// reference's stiffening (`mechanics::finite_strain`; 29 % at 20 % strain on the
-    /// portable punch). Default false: small strain, as the thesis measured its flat punch
-    /// (force linear in depth).
+    /// portable punch; the reference reaches 20 % (box) and 30 % (portable) strain, beyond
+    /// which it is extrapolated). Default false: small strain, as the thesis measured its
+    /// flat punch (force linear in depth).
     #[serde(default)]
     pub finite_strain: Option<bool>,
 }

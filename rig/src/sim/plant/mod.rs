@@ -6,8 +6,9 @@
 //! opened, fields only if the camera is). On top of it:
 //! - **viscoelasticity**: every channel's elastic (long-term) force drives a Prony
 //!   hereditary state with the exact exponential update, so a step relaxes and loading
-//!   sits above unloading (Lee–Radok form, spec §3); a curved indenter's normal force
-//!   follows Ting's treatment instead, its contact shrinking on unloading ([`normal`]);
+//!   sits above unloading (Lee–Radok form, spec §3); a sphere's normal force follows
+//!   Ting's treatment instead, its contact shrinking on unloading ([`normal`]; the truth's
+//!   contact radius and the tangential channels still follow the depth);
 //! - **friction**: shear and twist go through Masing friction elements on the solver's
 //!   partial-slip backbones, saturate at the static limit μP, slide at the kinetic limit and
 //!   stick again when the stage stops (the stick-slip steps of thesis Fig. 4-16);
@@ -262,18 +263,14 @@ impl Plant {
             quality: spec.quality,
         })
         .map_err(|e| RigError::Plant(e.to_string()))?;
-        // A sphere pressed by a stage: its contact shrinks when the stage backs off. (A
-        // grasp's gel balances the sponge through Lee–Radok's affine step.)
-        let curved = matches!(
-            spec.contact.indenter,
-            Indenter::Sphere { .. } | Indenter::Cylinder { .. }
-        );
-        let ting = (curved && !grasping)
+        // A sphere pressed by a stage: its contact shrinks when the stage backs off. (The
+        // treatment is for axisymmetric contacts: a cylinder's line contact, and a grasp's
+        // gel balancing the sponge through Lee–Radok's affine step, stay Lee–Radok.) Built
+        // to where the base is reached, so no depth the stage can press lies beyond it.
+        let sphere = matches!(spec.contact.indenter, Indenter::Sphere { .. });
+        let ting = (sphere && !grasping)
             .then(|| {
-                // A quarter beyond the deepest depth: the foundation's top elements (a
-                // one-sided derivative of F_e) stay clear of the protocol's depths.
-                let cap = (1.25 * spec.max_depth_mm)
-                    .min(BASE_CONTACT_FRACTION * spec.contact.layer.thickness_mm);
+                let cap = BASE_CONTACT_FRACTION * spec.contact.layer.thickness_mm;
                 TingContact::new(|d| model.normal_force_n(d), cap, &prony)
             })
             .flatten();

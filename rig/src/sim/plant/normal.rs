@@ -1,11 +1,12 @@
 //! The gel's normal force over time: the hereditary integral of its elastic force.
 //!
 //! A flat punch's contact keeps its area, so Lee & Radok's integral of the elastic force is
-//! exact for it, loading or unloading. A curved indenter's contact shrinks when the stage
-//! backs off, where that integral is not (it would have the indenter pull on a gel it no
-//! longer touches); Ting's treatment is followed instead ([`mechanics::unloading`]), and
-//! only the rigid base's part beyond 95 % of the thickness (a constant area) stays
-//! Lee–Radok.
+//! exact for it, loading or unloading (for a linear elastic law; at finite strain it is the
+//! quasi-linear approximation). A sphere's contact shrinks when the stage backs off, where
+//! that integral is not (it would have the indenter pull on a gel it no longer touches);
+//! Ting's treatment is followed instead ([`mechanics::unloading`]), and only the rigid base's
+//! part beyond 95 % of the thickness (a constant area) stays Lee–Radok. The truth's contact
+//! radius and the tangential channels still follow the depth, not Ting's shrinking contact.
 
 use super::{BASE_CONTACT_FRACTION, BASE_STIFFNESS_N_PER_MM, Plant};
 

@@ -47,7 +47,7 @@ fn cells(root: &Path, tmp: &Path) {
         let opts = CalibrateOptions {
             method: Method::Traction,
             cell_mm,
-            support: None,
+            ..CalibrateOptions::default()
         };
         let sensor = calibrate(&cal, &opts).expect("calibrate");
         let path = tmp.join("cells.yaml");
@@ -208,9 +208,15 @@ fn grasp(root: &Path, tmp: &Path) {
     println!("| sensor calibrated on | method | memory | phase | Fx % | Fy % | Fz % | Tz % |");
     println!("|---|---|---|---|---|---|---|---|");
     for (name, runs) in sensors {
-        for (method_name, method) in [("moments", Method::Moments), ("scale", Method::Scale)] {
+        for (method_name, method, symmetric) in [
+            ("moments", Method::Moments, false),
+            ("scale", Method::Scale, false),
+            ("moments, symmetric", Method::Moments, true),
+            ("scale, symmetric", Method::Scale, true),
+        ] {
             let opts = CalibrateOptions {
                 method,
+                symmetric,
                 ..CalibrateOptions::default()
             };
             let sensor = calibrate(&runs, &opts).expect("calibrate");
@@ -309,9 +315,34 @@ fn main() {
                     ..CalibrateOptions::default()
                 },
             ),
+            (
+                "moments, symmetric",
+                CalibrateOptions {
+                    symmetric: true,
+                    ..CalibrateOptions::default()
+                },
+            ),
+            (
+                "traction, symmetric",
+                CalibrateOptions {
+                    method: Method::Traction,
+                    symmetric: true,
+                    ..CalibrateOptions::default()
+                },
+            ),
+            (
+                "scale, symmetric",
+                CalibrateOptions {
+                    method: Method::Scale,
+                    symmetric: true,
+                    ..CalibrateOptions::default()
+                },
+            ),
         ] {
             let sensor: SensorFile = calibrate(&runs, &opts).expect("calibrate");
-            let path = tmp.path().join(format!("{name}-{method}.yaml"));
+            let path = tmp
+                .path()
+                .join(format!("{name}-{}.yaml", method.replace(", ", "-")));
             sensor.write(&path).expect("write");
             let held: Vec<String> = sensor
                 .held_out

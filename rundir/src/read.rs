@@ -192,6 +192,13 @@ pub struct ContactRow {
     pub area_mm2: Option<f64>,
     pub radius_mm: Option<f64>,
     pub radius_px: f64,
+    /// The region's central second moments per unit area, px² (absent before 27 Nov).
+    #[serde(default)]
+    pub sxx_px2: Option<f64>,
+    #[serde(default)]
+    pub syy_px2: Option<f64>,
+    #[serde(default)]
+    pub sxy_px2: Option<f64>,
 }
 
 /// One row of `tactile.csv` (what the report reads).

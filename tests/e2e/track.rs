@@ -386,7 +386,7 @@ fn the_contact_region_of_a_sphere_matches_the_simulators_contact_radius() {
     let header = std::fs::read_to_string(&path).unwrap();
     assert_eq!(
         header.lines().next().unwrap(),
-        "frame,area_px2,area_mm2,cx_px,cy_px,radius_mm,radius_px"
+        "frame,area_px2,area_mm2,cx_px,cy_px,radius_mm,radius_px,sxx_px2,syy_px2,sxy_px2"
     );
     let contact = csv_rows(&path);
     let frames = csv_rows(&run.join("frames.csv"));
@@ -429,6 +429,22 @@ fn the_contact_region_of_a_sphere_matches_the_simulators_contact_radius() {
         assert!(
             (cx - 319.5).abs() < 3.0 && (cy - 239.5).abs() < 3.0,
             "({cx}, {cy})"
+        );
+        // Its region's second moments are a disc's: r²/4 on average, and round (the
+        // moment ellipse's axes within 10 % of each other's squares).
+        let rp: f64 = row["radius_px"].parse().unwrap();
+        let m: Vec<f64> = ["sxx_px2", "syy_px2", "sxy_px2"]
+            .iter()
+            .map(|c| row[*c].parse().unwrap())
+            .collect();
+        let disc = rp * rp / 4.0;
+        let (mean, half_diff) = (
+            0.5 * (m[0] + m[1]),
+            (0.25 * (m[0] - m[1]).powi(2) + m[2] * m[2]).sqrt(),
+        );
+        assert!(
+            (mean / disc - 1.0).abs() < 0.1 && half_diff < 0.1 * mean,
+            "step {step}: moments {m:?} against a disc's {disc}"
         );
         worst = worst.max(rel.abs());
         checked += 1;

@@ -50,6 +50,69 @@ pub const FEATURES: [&str; 8] = [
 pub const TRACTION_FEATURES: [&str; 4] =
     ["traction_fx", "traction_fy", "traction_fz", "traction_tz"];
 
+/// How a feature changes when the whole load is turned or mirrored about the view's centre.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Symmetry {
+    /// The x component of a vector (a shear force along x).
+    VectorX,
+    /// The y component of a vector.
+    VectorY,
+    /// Unchanged by turns and mirrors (a normal force, a radial spread).
+    Scalar,
+    /// Unchanged by turns, negated by a mirror (a torque, a curl).
+    Pseudo,
+    /// A rank-2 part (a pure shear of the field): turns at twice the angle; no channel is
+    /// of this kind.
+    Rank2,
+}
+
+fn symmetry(feature: &str) -> Option<Symmetry> {
+    Some(match feature {
+        "int_ux" | "scale_shear_x" | "traction_fx" => Symmetry::VectorX,
+        "int_uy" | "scale_shear_y" | "traction_fy" => Symmetry::VectorY,
+        "int_r_dot_u" | "int_r2_r_dot_u" | "scale_normal" | "radial_offset_mm" | "traction_fz" => {
+            Symmetry::Scalar
+        }
+        "int_r_cross_u" | "int_r2_r_cross_u" | "scale_twist" | "traction_tz" => Symmetry::Pseudo,
+        "int_x_ux_minus_y_uy" | "int_x_uy_plus_y_ux" => Symmetry::Rank2,
+        _ => return None,
+    })
+}
+
+/// Which of `features` each channel ([`CHANNELS`]) is fitted on when the calibration asks
+/// for symmetry (`gelrig calibrate --symmetric`): those that turn as the channel does. The
+/// layer is isotropic, so a load turned about the view's centre turns its field with it: Fx
+/// and Fy are a vector's components, Fz a scalar and Tz a pseudo-scalar, and a linear
+/// reading of them may use only features of the same kind (Fx ← ∫ux; Fz ← ∫r·u, ∫r²r·u;
+/// Tz ← ∫r×u, ∫r²r×u). Tz also sees the shear features: the force sensor's axis is not the
+/// view's centre, and its torque carries that offset times the shear force. A feature of
+/// another kind reaches a channel only through a coincidence of the calibration's loads
+/// (round contacts only, a twist never combined with an elongated one), and a load without
+/// the coincidence then leaks in: fitted on every feature, a lifting can's twist read 0–36 N
+/// of Fz under a steady 5 N squeeze, and punch shapes the calibration never saw read Fz
+/// 5–7 % of span off. It assumes the force sensor's axes are the view's: in a grasp jig
+/// whose Nano17 is turned against the camera, Fy is the view's x, and a symmetric fit
+/// cannot map it. An unknown feature name is offered to every channel.
+pub fn channel_features(features: &[&str]) -> Vec<Vec<bool>> {
+    CHANNELS
+        .iter()
+        .map(|c| {
+            features
+                .iter()
+                .map(|f| match (symmetry(f), *c) {
+                    (None, _) => true,
+                    (Some(s), "fx_n") => s == Symmetry::VectorX,
+                    (Some(s), "fy_n") => s == Symmetry::VectorY,
+                    (Some(s), "fz_n") => s == Symmetry::Scalar,
+                    (Some(s), _) => {
+                        matches!(s, Symmetry::Pseudo | Symmetry::VectorX | Symmetry::VectorY)
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// Why a field cannot be read with a layout.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SensorError {

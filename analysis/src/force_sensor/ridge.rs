@@ -43,9 +43,84 @@ pub struct LinearModel {
 /// Points of the λ grid, from 1e-10 to 1e3 times the largest squared singular value.
 const LAMBDA_GRID: usize = 80;
 
+/// One channel's ridge on the standardised design `xs`, or `None` when its SVD fails.
+fn fit_channel(xs: &DMatrix<f64>, yc: &[f64]) -> Option<ChannelFit> {
+    let (n, p) = xs.shape();
+    // Bounded and only on finite input: nalgebra's plain `svd` may never return.
+    if !xs.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let svd = xs.clone().try_svd(true, true, f64::EPSILON, 1000)?;
+    let (u, vt, s) = (svd.u?, svd.v_t?, svd.singular_values);
+    let smax2 = s.iter().fold(0.0f64, |a, v| a.max(v * v)).max(1e-300);
+    let bias = yc.iter().sum::<f64>() / n as f64;
+    let yv = DVector::from_iterator(n, yc.iter().map(|v| v - bias));
+    let uty = u.transpose() * &yv;
+    let yy = yv.norm_squared();
+    let uty2 = uty.norm_squared();
+    let score = |lambda: f64| {
+        let mut resid = yy - uty2;
+        let mut dof = 0.0;
+        for (i, si) in s.iter().enumerate() {
+            let phi = si * si / (si * si + lambda);
+            resid += ((1.0 - phi) * uty[i]).powi(2);
+            dof += phi;
+        }
+        let denom = n as f64 - 1.0 - dof;
+        (
+            n as f64 * resid.max(0.0) / (denom * denom).max(1e-300),
+            resid.max(0.0),
+            dof,
+        )
+    };
+    let (mut best, mut best_l) = (f64::INFINITY, smax2);
+    for k in 0..LAMBDA_GRID {
+        let l = smax2 * 10f64.powf(-10.0 + 13.0 * k as f64 / (LAMBDA_GRID - 1) as f64);
+        let (g, _, _) = score(l);
+        if g < best {
+            best = g;
+            best_l = l;
+        }
+    }
+    let (_, resid, dof) = score(best_l);
+    let mut w = DVector::zeros(p);
+    let mut inv = DMatrix::zeros(p, p);
+    for (i, si) in s.iter().enumerate() {
+        let v = vt.row(i).transpose();
+        w += &v * (si / (si * si + best_l) * uty[i]);
+        inv += &v * v.transpose() / (si * si + best_l);
+    }
+    // Directions of the feature space with no singular value (p > rank) get the pure
+    // ridge 1/λ.
+    let rank = s.len();
+    if rank < p {
+        let vv = vt.transpose() * &vt;
+        let eye = DMatrix::<f64>::identity(p, p);
+        inv += (eye - vv) / best_l;
+    }
+    let sigma = (resid / (n as f64 - 1.0 - dof).max(1.0)).sqrt();
+    Some(ChannelFit {
+        weights: w.iter().copied().collect(),
+        bias,
+        lambda: best_l,
+        sigma,
+        inv_gram: inv.transpose().iter().copied().collect(),
+        dof,
+    })
+}
+
 impl LinearModel {
     /// Fits every channel of `y` (rows: samples) on features `x` (rows: samples).
     pub fn fit(x: &[Vec<f64>], y: &[Vec<f64>]) -> Result<Self, SensorError> {
+        Self::fit_masked(x, y, None)
+    }
+
+    /// As [`Self::fit`], channel `c` seeing only the features `masks[c]` marks.
+    pub fn fit_masked(
+        x: &[Vec<f64>],
+        y: &[Vec<f64>],
+        masks: Option<&[Vec<bool>]>,
+    ) -> Result<Self, SensorError> {
         let n = x.len();
         let p = x.first().map_or(0, Vec::len);
         if n < p + 2 || y.len() != n {
@@ -64,78 +139,54 @@ impl LinearModel {
             })
             .collect();
         let xs = DMatrix::from_fn(n, p, |i, j| (x[i][j] - mean[j]) / scale[j]);
-        // Bounded and only on finite input: nalgebra's plain `svd` may never return.
-        let svd = xs
-            .iter()
-            .all(|v| v.is_finite())
-            .then(|| xs.clone().try_svd(true, true, f64::EPSILON, 1000))
-            .flatten();
-        let Some((Some(u), Some(vt), s)) = svd.map(|d| (d.u, d.v_t, d.singular_values)) else {
-            return Err(SensorError::TooFewSamples {
+        let nc = y.first().map_or(0, Vec::len);
+        let mut channels = Vec::with_capacity(nc);
+        for c in 0..nc {
+            let keep: Vec<usize> = (0..p)
+                .filter(|&j| {
+                    masks.is_none_or(|m| {
+                        m.get(c)
+                            .is_none_or(|mc| mc.get(j).copied().unwrap_or(false))
+                    })
+                })
+                .collect();
+            let yc: Vec<f64> = y.iter().map(|r| r[c]).collect();
+            if keep.is_empty() {
+                // Nothing to see: the channel is its calibration mean.
+                let bias = yc.iter().sum::<f64>() / n as f64;
+                let resid = yc.iter().map(|v| (v - bias).powi(2)).sum::<f64>();
+                channels.push(ChannelFit {
+                    weights: vec![0.0; p],
+                    bias,
+                    lambda: 0.0,
+                    sigma: (resid / (n as f64 - 1.0).max(1.0)).sqrt(),
+                    inv_gram: vec![0.0; p * p],
+                    dof: 0.0,
+                });
+                continue;
+            }
+            let sub = DMatrix::from_fn(n, keep.len(), |i, j| xs[(i, keep[j])]);
+            let fit = fit_channel(&sub, &yc).ok_or(SensorError::TooFewSamples {
                 samples: n,
                 features: p,
+            })?;
+            // Scattered back to every feature: an excluded one has no weight and no
+            // variance.
+            let q = keep.len();
+            let mut weights = vec![0.0; p];
+            let mut inv_gram = vec![0.0; p * p];
+            for (a, &ja) in keep.iter().enumerate() {
+                weights[ja] = fit.weights[a];
+                for (b, &jb) in keep.iter().enumerate() {
+                    inv_gram[ja * p + jb] = fit.inv_gram[a * q + b];
+                }
+            }
+            channels.push(ChannelFit {
+                weights,
+                inv_gram,
+                ..fit
             });
-        };
-        let smax2 = s.iter().fold(0.0f64, |a, v| a.max(v * v)).max(1e-300);
-        let channels = (0..y.first().map_or(0, Vec::len))
-            .map(|c| {
-                let yc: Vec<f64> = y.iter().map(|r| r[c]).collect();
-                let bias = yc.iter().sum::<f64>() / n as f64;
-                let yv = DVector::from_iterator(n, yc.iter().map(|v| v - bias));
-                let uty = u.transpose() * &yv;
-                let yy = yv.norm_squared();
-                let uty2 = uty.norm_squared();
-                let score = |lambda: f64| {
-                    let mut resid = yy - uty2;
-                    let mut dof = 0.0;
-                    for (i, si) in s.iter().enumerate() {
-                        let phi = si * si / (si * si + lambda);
-                        resid += ((1.0 - phi) * uty[i]).powi(2);
-                        dof += phi;
-                    }
-                    let denom = n as f64 - 1.0 - dof;
-                    (
-                        n as f64 * resid.max(0.0) / (denom * denom).max(1e-300),
-                        resid.max(0.0),
-                        dof,
-                    )
-                };
-                let (mut best, mut best_l) = (f64::INFINITY, smax2);
-                for k in 0..LAMBDA_GRID {
-                    let l = smax2 * 10f64.powf(-10.0 + 13.0 * k as f64 / (LAMBDA_GRID - 1) as f64);
-                    let (g, _, _) = score(l);
-                    if g < best {
-                        best = g;
-                        best_l = l;
-                    }
-                }
-                let (_, resid, dof) = score(best_l);
-                let mut w = DVector::zeros(p);
-                let mut inv = DMatrix::zeros(p, p);
-                for (i, si) in s.iter().enumerate() {
-                    let v = vt.row(i).transpose();
-                    w += &v * (si / (si * si + best_l) * uty[i]);
-                    inv += &v * v.transpose() / (si * si + best_l);
-                }
-                // Directions of the feature space with no singular value (p > rank) get the
-                // pure ridge 1/λ.
-                let rank = s.len();
-                if rank < p {
-                    let vv = vt.transpose() * &vt;
-                    let eye = DMatrix::<f64>::identity(p, p);
-                    inv += (eye - vv) / best_l;
-                }
-                let sigma = (resid / (n as f64 - 1.0 - dof).max(1.0)).sqrt();
-                ChannelFit {
-                    weights: w.iter().copied().collect(),
-                    bias,
-                    lambda: best_l,
-                    sigma,
-                    inv_gram: inv.transpose().iter().copied().collect(),
-                    dof,
-                }
-            })
-            .collect();
+        }
         Ok(Self {
             mean,
             scale,

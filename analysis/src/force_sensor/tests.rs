@@ -128,3 +128,124 @@ fn another_layout_is_refused_and_unmeasured_markers_are_filled() {
     assert!((u[55][0] - 0.05).abs() < 1e-12, "{:?}", u[55]);
     assert!((share - 0.99).abs() < 1e-12);
 }
+
+/// Tractions on `grid` of a region (`inside(x, y)`) pressed with `p` MPa, sheared with
+/// (`qx`, `qy`) MPa and twisted with `tw` MPa/mm about the origin; the wrench they carry.
+fn loaded(
+    grid: Grid,
+    inside: impl Fn(f64, f64) -> bool,
+    [p, qx, qy, tw]: [f64; 4],
+) -> ([Vec<f64>; 3], [f64; 4]) {
+    let a = grid.area();
+    let mut w = [0.0; 4];
+    let cells: Vec<[f64; 3]> = (0..grid.len())
+        .map(|idx| {
+            let (x, y) = grid.xy(idx);
+            if !inside(x, y) {
+                return [0.0; 3];
+            }
+            let (tx, ty) = (qx - tw * y, qy + tw * x);
+            w[0] += tx * a;
+            w[1] += ty * a;
+            w[2] += p * a;
+            w[3] += (x * ty - y * tx) * a;
+            [tx, ty, p]
+        })
+        .collect();
+    let t = [0, 1, 2].map(|k| cells.iter().map(|c| c[k]).collect());
+    (t, w)
+}
+
+/// Fitted on what a calibration sees — a centred disc pressed, sheared, and twisted at a
+/// preload — each channel on the features that turn as it does reads a pressed strip's Fz
+/// the same whether or not the strip is twisted; fitted on every feature, the twist moves
+/// Fz (the pure-shear moment of a twisted strip is what the disc never showed).
+#[test]
+fn a_twist_does_not_leak_into_the_normal_force() {
+    let grid = Grid { n: 128, dx: 0.25 };
+    let disc = |x: f64, y: f64| x * x + y * y < 9.0;
+    let (mut xs, mut ys) = (Vec::new(), Vec::new());
+    let mut state = 777u64;
+    let mut rnd = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for k in 0..40 {
+        // Half the samples pressed deeper and deeper; half twisted at a fixed preload (the
+        // twist rising with the sample, as a rotation protocol's steps do).
+        let load = if k % 2 == 0 {
+            [
+                0.01 + 0.04 * rnd(),
+                0.004 * (rnd() - 0.5),
+                0.004 * (rnd() - 0.5),
+                0.0,
+            ]
+        } else {
+            [0.02 + 0.001 * rnd(), 0.0, 0.0, 0.0002 * k as f64]
+        };
+        let (t, w) = loaded(grid, disc, load);
+        let (layout, u) = layer_field(grid, &t[0], &t[1], &t[2]);
+        let noisy: Vec<[f64; 2]> = u
+            .iter()
+            .map(|d| [d[0] + 1e-5 * (rnd() - 0.5), d[1] + 1e-5 * (rnd() - 0.5)])
+            .collect();
+        xs.push(layout.features(&noisy).to_vec());
+        ys.push(w.to_vec());
+    }
+    let masks = channel_features(&FEATURES);
+    let fz_mask = &masks[2];
+    assert_eq!(
+        fz_mask,
+        &vec![false, false, true, false, false, false, true, false],
+        "Fz sees ∫r·u and ∫r²r·u"
+    );
+    let strip = |x: f64, y: f64| x.abs() < 6.0 && y.abs() < 1.2;
+    let read = |model: &LinearModel, tw: f64| {
+        let (t, w) = loaded(grid, strip, [0.03, 0.0, 0.0, tw]);
+        let (layout, u) = layer_field(grid, &t[0], &t[1], &t[2]);
+        (model.predict(&layout.features(&u)).0[2], w[2])
+    };
+    let by_kind = LinearModel::fit_masked(&xs, &ys, Some(&masks)).expect("fit");
+    let (pressed, fz) = read(&by_kind, 0.0);
+    let (twisted, _) = read(&by_kind, 0.01);
+    assert!(
+        (twisted - pressed).abs() < 0.01 * fz,
+        "twisted {twisted} N, pressed {pressed} N (Fz {fz} N)"
+    );
+    // The same fit on every feature: the twist moves the reading.
+    let all = LinearModel::fit(&xs, &ys).expect("fit");
+    let (p_all, _) = read(&all, 0.0);
+    let (t_all, _) = read(&all, 0.01);
+    assert!(
+        (t_all - p_all).abs() > 0.05 * fz,
+        "every feature: twisted {t_all} N, pressed {p_all} N — the scenario no longer shows the leak"
+    );
+    // A channel fitted on its mask has no weight elsewhere, and is the fit of those
+    // features alone.
+    for (c, m) in masks.iter().enumerate() {
+        for (j, keep) in m.iter().enumerate() {
+            if !keep {
+                assert_eq!(by_kind.channels[c].weights[j], 0.0, "{c} {j}");
+            }
+        }
+    }
+    let cols: Vec<usize> = (0..8).filter(|&j| fz_mask[j]).collect();
+    let sub: Vec<Vec<f64>> = xs
+        .iter()
+        .map(|r| cols.iter().map(|&j| r[j]).collect())
+        .collect();
+    let alone = LinearModel::fit(&sub, &ys).expect("fit");
+    let f: Vec<f64> = cols.iter().map(|&j| xs[3][j]).collect();
+    let (a, sa) = alone.predict(&f);
+    let (b, sb) = by_kind.predict(&xs[3]);
+    assert!(
+        (a[2] - b[2]).abs() < 1e-9 * a[2].abs().max(1.0),
+        "{a:?} vs {b:?}"
+    );
+    assert!(
+        (sa[2] - sb[2]).abs() < 1e-9 * sa[2].abs().max(1.0),
+        "{sa:?} vs {sb:?}"
+    );
+}

@@ -92,6 +92,42 @@ pub fn disc_cells(centre_mm: [f64; 2], radius_mm: f64, cell_mm: f64) -> Vec<[f64
     out
 }
 
+/// Cells of side `cell_mm` inside `support` times the moment-equivalent ellipse of a
+/// region centred at `centre_mm` with central second moments `moments_mm2` ([σxx, σyy,
+/// σxy], mm²): the points p with (p − c)ᵀ Σ⁻¹ (p − c) ≤ 4·support². For a disc of radius a
+/// (moments a²/4, a²/4, 0) this is [`disc_cells`] of `support`·a; an elongated contact keeps
+/// its length, and where it runs out of the view the support runs on past the view's edge.
+/// A degenerate ellipse (a line) keeps a semi-axis of at least `min_semi_mm`.
+pub fn ellipse_cells(
+    centre_mm: [f64; 2],
+    moments_mm2: [f64; 3],
+    support: f64,
+    min_semi_mm: f64,
+    cell_mm: f64,
+) -> Vec<[f64; 2]> {
+    let [sxx, syy, sxy] = moments_mm2;
+    // Eigen-decomposition of the 2 × 2 moment tensor.
+    let mean = 0.5 * (sxx + syy);
+    let diff = (0.25 * (sxx - syy).powi(2) + sxy * sxy).sqrt();
+    let floor = (0.5 * min_semi_mm / support.max(1e-9)).powi(2);
+    let (l1, l2) = ((mean + diff).max(floor), (mean - diff).max(floor));
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let (c, s) = (angle.cos(), angle.sin());
+    let (a1, a2) = (2.0 * support * l1.sqrt(), 2.0 * support * l2.sqrt());
+    let k = (a1.max(a2) / cell_mm).ceil() as i64;
+    let mut out = Vec::new();
+    for j in -k..=k {
+        for i in -k..=k {
+            let (x, y) = (i as f64 * cell_mm, j as f64 * cell_mm);
+            let (u, v) = (c * x + s * y, -s * x + c * y);
+            if (u / a1).powi(2) + (v / a2).powi(2) <= 1.0 {
+                out.push([centre_mm[0] + x, centre_mm[1] + y]);
+            }
+        }
+    }
+    out
+}
+
 /// Points of the λ grid (relative to the largest squared singular value).
 const LAMBDA_GRID: usize = 40;
 
@@ -196,6 +232,35 @@ fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A disc's moments give the disc's cells; an ellipse along a turned axis keeps its
+    /// length and width.
+    #[test]
+    fn the_support_follows_the_regions_shape() {
+        let a: f64 = 4.3;
+        let disc = ellipse_cells([0.5, -1.0], [a * a / 4.0, a * a / 4.0, 0.0], 1.2, 0.1, 1.0);
+        assert_eq!(disc, disc_cells([0.5, -1.0], 1.2 * a, 1.0));
+        // A 20 × 4 mm strip's moments (w²/12, h²/12) turned by 30°: its ellipse reaches
+        // 2·√(400/12) = 11.5 mm along the strip and 2.3 mm across.
+        let (t, l1, l2) = (30f64.to_radians(), 400.0 / 12.0, 16.0 / 12.0);
+        let (c, s) = (t.cos(), t.sin());
+        let m = [
+            l1 * c * c + l2 * s * s,
+            l1 * s * s + l2 * c * c,
+            (l1 - l2) * s * c,
+        ];
+        let cells = ellipse_cells([0.0, 0.0], m, 1.0, 0.1, 0.25);
+        let along = |p: &[f64; 2]| c * p[0] + s * p[1];
+        let across = |p: &[f64; 2]| -s * p[0] + c * p[1];
+        let reach = cells.iter().map(along).fold(0.0f64, f64::max);
+        let width = cells.iter().map(across).fold(0.0f64, f64::max);
+        assert!((reach - 11.55).abs() < 0.3, "{reach}");
+        assert!((width - 2.31).abs() < 0.3, "{width}");
+        // A line keeps the least semi-axis across.
+        let line = ellipse_cells([0.0, 0.0], [10.0, 0.0, 0.0], 1.0, 2.0, 0.25);
+        let width = line.iter().map(|p| p[1].abs()).fold(0.0f64, f64::max);
+        assert!((1.75..=2.0).contains(&width), "{width}");
+    }
 
     /// A pressure patch and a shear patch on the layer, seen at scattered markers: the map
     /// recovers the force and torque of the load it was made from.

@@ -76,6 +76,10 @@ pub struct ContactRegion {
     pub centroid_px: [f64; 2],
     /// Radius of the circle of the same area, px.
     pub radius_px: f64,
+    /// Central second moments of the outline's area per unit area, [σxx, σyy, σxy], px²:
+    /// the region's moment-equivalent ellipse (a disc of radius a: a²/4, a²/4, 0). A
+    /// traction map's support follows it, so an elongated contact is not cut to a disc.
+    pub second_moments_px2: [f64; 3],
     /// Closed outline (the last point joins the first), px.
     pub outline_px: Vec<[f64; 2]>,
     /// Largest colour change against the reference (relative intensity units).
@@ -263,16 +267,23 @@ impl ContactFinder {
                 self.to_px(centre[0] + r * a.cos(), centre[1] + r * a.sin())
             })
             .collect();
-        let (area, centroid) = polygon_area_centroid(&outline);
+        let (area, centroid) = super::outline::area_centroid(&outline);
         // A change smaller than a marker is noise or a speck: no contact that small can be
         // told from the markers' own rims.
         if area < std::f64::consts::PI * reference.radius_px().powi(2) {
             return Ok(None);
         }
+        let radius_px = (area / std::f64::consts::PI).sqrt();
+        let disc = [
+            radius_px * radius_px / 4.0,
+            radius_px * radius_px / 4.0,
+            0.0,
+        ];
         Ok(Some(ContactRegion {
             area_px2: area,
             centroid_px: centroid,
-            radius_px: (area / std::f64::consts::PI).sqrt(),
+            radius_px,
+            second_moments_px2: super::outline::second_moments(&outline).unwrap_or(disc),
             outline_px: outline,
             peak_change: peak as f64,
         }))
@@ -639,22 +650,6 @@ fn smooth_121(map: &mut [f32], tmp: &mut [f32], w: usize, h: usize) {
     }
 }
 
-/// Area (shoelace) and centroid of a closed polygon.
-fn polygon_area_centroid(p: &[[f64; 2]]) -> (f64, [f64; 2]) {
-    let (mut a, mut cx, mut cy) = (0.0, 0.0, 0.0);
-    for k in 0..p.len() {
-        let (q, r) = (p[k], p[(k + 1) % p.len()]);
-        let cross = q[0] * r[1] - r[0] * q[1];
-        a += cross;
-        cx += (q[0] + r[0]) * cross;
-        cy += (q[1] + r[1]) * cross;
-    }
-    if a.abs() < 1e-12 {
-        return (0.0, [f64::NAN; 2]);
-    }
-    (a.abs() / 2.0, [cx / (3.0 * a), cy / (3.0 * a)])
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -741,16 +736,5 @@ mod tests {
         let band = gel(3, |_, y| if (y - 90.0).abs() < 30.0 { k } else { 0.0 });
         let region = find(&r, &mut f, &band).expect("a broad faint change is contact");
         assert!(region.area_px2 > 5000.0, "{}", region.area_px2);
-    }
-
-    #[test]
-    fn a_square_has_its_area_and_centre() {
-        let sq = [[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]];
-        let (a, c) = polygon_area_centroid(&sq);
-        assert!((a - 16.0).abs() < 1e-12);
-        assert!((c[0] - 2.0).abs() < 1e-12 && (c[1] - 2.0).abs() < 1e-12);
-        let reversed: Vec<_> = sq.iter().rev().copied().collect();
-        let (a2, c2) = polygon_area_centroid(&reversed);
-        assert!((a2 - 16.0).abs() < 1e-12 && (c2[0] - 2.0).abs() < 1e-12);
     }
 }

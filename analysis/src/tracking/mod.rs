@@ -31,6 +31,7 @@ mod contact;
 mod detect;
 pub mod lattice;
 pub mod lk;
+mod outline;
 mod reference;
 mod tracker;
 

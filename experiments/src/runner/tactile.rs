@@ -82,7 +82,7 @@ impl LiveTactile {
     fn gelsight_wrench(
         &mut self,
         field: &MarkerField,
-        seen: Option<([f64; 2], f64)>,
+        seen: Option<crate::sensor::history::Region>,
         t_ns: u64,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
         let (reader, map) = self.gelsight.as_mut()?;
@@ -177,7 +177,11 @@ impl LiveTactile {
             self.monitor.set_pressing(&field, contact);
             self.pending_pressing = false;
         }
-        let region = pipeline.contact().map(|c| (c.centroid_px, c.radius_px));
+        let region = pipeline.contact().map(|c| crate::sensor::history::Region {
+            centroid_px: c.centroid_px,
+            radius_px: c.radius_px,
+            second_moments_px2: Some(c.second_moments_px2),
+        });
         let t = self.monitor.update(&field, contact);
         // The GelSight's force reads the interior field, as its calibration and `gelrig
         // track --sensor` do (`markers.csv`'s tracked and merged markers): border markers'

@@ -59,6 +59,10 @@ pub struct CalibrateOptions {
     /// The traction map's support, in contact radii; `None`: the one of [`SUPPORTS`] with
     /// the smallest held-out error.
     pub support: Option<f64>,
+    /// Fit each channel only on the features that turn as it does
+    /// ([`analysis::force_sensor::channel_features`]), for a force sensor whose axes are the
+    /// view's; otherwise every channel sees every feature.
+    pub symmetric: bool,
 }
 
 /// Supports tried when none is given, in contact radii: the image's contact region is the
@@ -71,6 +75,7 @@ impl Default for CalibrateOptions {
             method: Method::Moments,
             cell_mm: 1.0,
             support: None,
+            symmetric: false,
         }
     }
 }
@@ -285,7 +290,7 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
         )
     };
     match opts.method {
-        Method::Moments => return finish(&gathered, &How::Moments, first),
+        Method::Moments => return finish(&gathered, &How::Moments, first, opts.symmetric),
         Method::Scale => {
             let spec = spec.as_ref().ok_or_else(how_unknown)?;
             let settings = super::scale::reference_fields(spec, &gathered.layout)
@@ -297,7 +302,12 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
                     "calibrate with --method moments",
                 )
             })?;
-            return finish(&gathered, &How::Scale(&basis, &settings), first);
+            return finish(
+                &gathered,
+                &How::Scale(&basis, &settings),
+                first,
+                opts.symmetric,
+            );
         }
         Method::Traction => {}
     }
@@ -325,7 +335,7 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
     let mut best: Option<(f64, SensorFile)> = None;
     for support in supports {
         let t = traction_settings(&gathered, &kernel, TractionSettings { support, ..base });
-        let file = finish(&gathered, &How::Traction(&kernel, t), first)?;
+        let file = finish(&gathered, &How::Traction(&kernel, t), first, opts.symmetric)?;
         let score: f64 = file.held_out.channels.values().map(|s| s.pct_range).sum();
         if best.as_ref().is_none_or(|(b, _)| score < *b) {
             best = Some((score, file));
@@ -354,7 +364,12 @@ enum How<'a> {
 }
 
 /// Features, fit and held-out error of `g` read `how`.
-fn finish(g: &Gathered, how: &How<'_>, first: &Path) -> Result<SensorFile, SensorError> {
+fn finish(
+    g: &Gathered,
+    how: &How<'_>,
+    first: &Path,
+    symmetric: bool,
+) -> Result<SensorFile, SensorError> {
     let (layout, view) = (&g.layout, &g.view);
     let per_run: Vec<RunSamples> = g
         .pending
@@ -389,15 +404,22 @@ fn finish(g: &Gathered, how: &How<'_>, first: &Path) -> Result<SensorFile, Senso
         })
         .collect();
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
-    let model = fit(&all).map_err(|source| SensorError::Model {
+    let names: &[&str] = match how {
+        How::Moments => &FEATURES[..],
+        How::Traction(..) => &TRACTION_FEATURES[..],
+        How::Scale(..) => &SCALE_FEATURES[..],
+    };
+    let masks = symmetric.then(|| analysis::force_sensor::channel_features(names));
+    let model = fit(&all, masks.as_deref()).map_err(|source| SensorError::Model {
         path: first.to_path_buf(),
         source,
     })?;
     let ranges = ranges(&all);
-    let held_out = held_out(&per_run, &ranges).map_err(|source| SensorError::Model {
-        path: first.to_path_buf(),
-        source,
-    })?;
+    let held_out =
+        held_out(&per_run, &ranges, masks.as_deref()).map_err(|source| SensorError::Model {
+            path: first.to_path_buf(),
+            source,
+        })?;
     Ok(SensorFile {
         format: FORMAT.into(),
         version: VERSION,
@@ -414,15 +436,9 @@ fn finish(g: &Gathered, how: &How<'_>, first: &Path) -> Result<SensorFile, Senso
             How::Scale(..) => METHOD_SCALE,
         }
         .into(),
-        features: match how {
-            How::Moments => &FEATURES[..],
-            How::Traction(..) => &TRACTION_FEATURES[..],
-            How::Scale(..) => &SCALE_FEATURES[..],
-        }
-        .iter()
-        .map(|f| (*f).to_string())
-        .collect(),
+        features: names.iter().map(|f| (*f).to_string()).collect(),
         model: SensorFile::model_file(&model),
+        symmetric,
         traction: match how {
             How::Traction(_, t) => Some(*t),
             _ => None,
@@ -502,10 +518,14 @@ pub(crate) fn span(ranges: &BTreeMap<String, [f64; 2]>, channel: &str) -> f64 {
     }
 }
 
-fn fit(samples: &[&Sample]) -> Result<LinearModel, analysis::force_sensor::SensorError> {
+/// Each channel fitted on the features `masks` marks for it (every feature without).
+fn fit(
+    samples: &[&Sample],
+    masks: Option<&[Vec<bool>]>,
+) -> Result<LinearModel, analysis::force_sensor::SensorError> {
     let x: Vec<Vec<f64>> = samples.iter().map(|s| s.features.clone()).collect();
     let y: Vec<Vec<f64>> = samples.iter().map(|s| s.wrench.clone()).collect();
-    LinearModel::fit(&x, &y)
+    LinearModel::fit_masked(&x, &y, masks)
 }
 
 /// Folds of the held-out error.
@@ -516,6 +536,7 @@ const FOLDS: usize = 5;
 fn held_out(
     runs: &[RunSamples],
     ranges: &BTreeMap<String, [f64; 2]>,
+    masks: Option<&[Vec<bool>]>,
 ) -> Result<HeldOut, analysis::force_sensor::SensorError> {
     // Every fifth frame of each run in a fold: each fold holds every run's loads.
     let all: Vec<(usize, &Sample)> = runs
@@ -530,7 +551,7 @@ fn held_out(
             .filter(|(i, _)| i % folds != k)
             .map(|(_, s)| *s)
             .collect();
-        let model = fit(&train)?;
+        let model = fit(&train, masks)?;
         for (i, s) in &all {
             if i % folds == k {
                 let (v, _) = model.predict(&s.features);

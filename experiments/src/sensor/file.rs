@@ -71,6 +71,11 @@ pub struct SensorFile {
     pub features: Vec<String>,
     /// The fitted model.
     pub model: ModelFile,
+    /// Whether each channel was fitted only on the features that turn as it does
+    /// (`gelrig calibrate --symmetric`; [`analysis::force_sensor::channel_features`]): the
+    /// others then have no weight. Absent: every channel saw every feature.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub symmetric: bool,
     /// The traction map's settings (`traction-map` only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub traction: Option<TractionSettings>,

@@ -27,8 +27,26 @@
 use analysis::field::MarkerField;
 use analysis::force_sensor::memory::Memory;
 
-/// A contact region: centroid and equivalent radius, px.
-pub type Region = ([f64; 2], f64);
+/// A contact region as the image shows it: centroid and equivalent radius, px, and the
+/// central second moments of its area ([σxx, σyy, σxy], px²) where they were recorded (a
+/// `contact.csv` written before 27 Nov has none: the region reads as a disc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Region {
+    pub centroid_px: [f64; 2],
+    pub radius_px: f64,
+    pub second_moments_px2: Option<[f64; 3]>,
+}
+
+impl Region {
+    /// A disc: no second moments recorded.
+    pub fn disc(centroid_px: [f64; 2], radius_px: f64) -> Self {
+        Self {
+            centroid_px,
+            radius_px,
+            second_moments_px2: None,
+        }
+    }
+}
 
 /// The load history of one recording (or one record block).
 #[derive(Debug, Clone)]
@@ -137,13 +155,13 @@ fn bridge(last: &mut Option<(Region, f64)>, seen: Option<Region>, total_px: f64)
 
 #[cfg(test)]
 mod tests {
-    use super::{LoadHistory, bridge};
+    use super::{LoadHistory, Region, bridge};
 
     /// Where contact regions are looked for, a frame without one reads no load; where they
     /// are not (a recording tracked without), the field's reading stands.
     #[test]
     fn a_free_gel_reads_no_load_where_contact_is_looked_for() {
-        let region = Some(([320.0, 240.0], 40.0));
+        let region = Some(Region::disc([320.0, 240.0], 40.0));
         for (found, want) in [(true, [0.0; 4]), (false, [0.1, -0.05, 0.4, 0.02])] {
             let mut h = LoadHistory::new(None, Some([0.0, 24.0]), found);
             let mut v = [0.1, -0.05, 0.4, 0.02];
@@ -173,7 +191,11 @@ mod tests {
             assert_eq!(v[2], 0.0, "a free gel reads no load");
         }
         let mut v = [0.0, 0.0, 2.0, 0.0];
-        h.wrench(5 * 40_000_000, &mut v, Some(([320.0, 240.0], 40.0)));
+        h.wrench(
+            5 * 40_000_000,
+            &mut v,
+            Some(Region::disc([320.0, 240.0], 40.0)),
+        );
         // A ramp from 0 to 2 N over 40 ms: 2·(1 + 0.5·(1 − e^{−x})/x), x = 0.004.
         let x: f64 = 0.04 / 10.0;
         let want = 2.0 * (1.0 + 0.5 * (-(-x).exp_m1() / x));
@@ -184,7 +206,7 @@ mod tests {
     fn a_frame_without_a_region_in_a_loaded_grasp_keeps_the_last_one_and_an_unloaded_gel_lets_go() {
         let mut last = None;
         assert_eq!(bridge(&mut last, None, 0.01), None, "no contact yet");
-        let r = ([320.0, 240.0], 40.0);
+        let r = Region::disc([320.0, 240.0], 40.0);
         assert_eq!(bridge(&mut last, Some(r), 2.5), Some(r));
         // The finder misses a frame; the field still carries the load.
         assert_eq!(bridge(&mut last, None, 2.9), Some(r));
@@ -200,7 +222,7 @@ mod tests {
             None,
             "nothing left to bridge with"
         );
-        let r2 = ([300.0, 250.0], 35.0);
+        let r2 = Region::disc([300.0, 250.0], 35.0);
         assert_eq!(bridge(&mut last, Some(r2), 2.0), Some(r2));
     }
 }

@@ -64,8 +64,8 @@ pub struct RunFrame {
     pub t_ns: u64,
     /// The step it was taken in (0 where unknown).
     pub step: u32,
-    /// The image's contact region: centroid (px) and equivalent radius (px), if found.
-    pub contact: Option<([f64; 2], f64)>,
+    /// The image's contact region, if found.
+    pub contact: Option<history::Region>,
     pub field: MarkerField,
 }
 
@@ -91,14 +91,23 @@ pub(crate) fn run_frames(data: &RunData) -> Vec<RunFrame> {
         .collect()
 }
 
-/// The contact region of `frame` in `contact.csv` rows: centroid and equivalent radius, px.
+/// The contact region of `frame` in `contact.csv` rows.
 pub(crate) fn contact_of(
     rows: &[crate::run_data::ContactRow],
     frame: u64,
-) -> Option<([f64; 2], f64)> {
+) -> Option<history::Region> {
     rows.iter()
         .find(|r| r.frame == frame && r.radius_px > 0.0)
-        .and_then(|r| Some(([r.cx_px?, r.cy_px?], r.radius_px)))
+        .and_then(|r| {
+            Some(history::Region {
+                centroid_px: [r.cx_px?, r.cy_px?],
+                radius_px: r.radius_px,
+                second_moments_px2: match (r.sxx_px2, r.syy_px2, r.sxy_px2) {
+                    (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+                    _ => None,
+                },
+            })
+        })
 }
 
 /// The force sensor's wrench when a frame of `step` was taken at `t_ns`: for a frame

@@ -74,7 +74,7 @@ impl Reader {
     pub fn read(
         &self,
         field: &MarkerField,
-        contact: Option<([f64; 2], f64)>,
+        contact: Option<super::history::Region>,
         map: &[Option<usize>],
     ) -> Reading {
         let (u, measured_share) = self.layout.displacements_mm(field, map);
@@ -114,17 +114,18 @@ pub(crate) fn kernel_from_view(view: &View, t: &TractionSettings) -> TractionKer
     TractionKernel::new(t.thickness_mm, t.kernel_dx_mm, reach)
 }
 
-/// The traction map of displacements `u_mm` at the layout's markers, on a disc of
-/// `support` × the contact's equivalent radius about its centroid; `None` without contact.
+/// The traction map of displacements `u_mm` at the layout's markers, on `support` times the
+/// contact's moment-equivalent ellipse (its equivalent disc where the region has no recorded
+/// moments); `None` without contact.
 pub(crate) fn traction_map(
     layout: &Layout,
     kernel: &TractionKernel,
     t: &TractionSettings,
     u_mm: &[[f64; 2]],
-    contact: Option<([f64; 2], f64)>,
+    contact: Option<super::history::Region>,
     lambda: Option<f64>,
 ) -> Option<TractionMap> {
-    let (c_px, r_px) = contact?;
+    let region = contact?;
     let s = layout.mm_per_px;
     let to_mm = |p: [f64; 2]| {
         [
@@ -132,7 +133,17 @@ pub(crate) fn traction_map(
             (p[1] - layout.centre_px[1]) * s,
         ]
     };
-    let cells = traction::disc_cells(to_mm(c_px), r_px * s * t.support, t.cell_mm);
+    let (c_px, r_px) = (region.centroid_px, region.radius_px);
+    let cells = match region.second_moments_px2 {
+        Some(m) => traction::ellipse_cells(
+            to_mm(c_px),
+            [m[0] * s * s, m[1] * s * s, m[2] * s * s],
+            t.support,
+            t.cell_mm,
+            t.cell_mm,
+        ),
+        None => traction::disc_cells(to_mm(c_px), r_px * s * t.support, t.cell_mm),
+    };
     let markers: Vec<[f64; 2]> = layout.reference_px.iter().map(|p| to_mm(*p)).collect();
     traction::solve(kernel, &markers, u_mm, &cells, t.cell_mm, lambda)
 }

@@ -237,6 +237,9 @@ struct ContactRow {
     cy_px: Option<f64>,
     radius_mm: Option<f64>,
     radius_px: f64,
+    sxx_px2: Option<f64>,
+    syy_px2: Option<f64>,
+    sxy_px2: Option<f64>,
 }
 
 impl ContactRow {
@@ -250,6 +253,9 @@ impl ContactRow {
             cy_px: c.map(|c| r4(c.centroid_px[1])),
             radius_mm: mm_per_px.map(|s| r4(radius * s)),
             radius_px: r4(radius),
+            sxx_px2: c.map(|c| r4(c.second_moments_px2[0])),
+            syy_px2: c.map(|c| r4(c.second_moments_px2[1])),
+            sxy_px2: c.map(|c| r4(c.second_moments_px2[2])),
         }
     }
 }

@@ -25,10 +25,17 @@ pub(crate) struct Cmd {
     /// The traction map's cell, mm.
     #[arg(long, value_name = "MM", default_value_t = 1.0)]
     cell_mm: f64,
-    /// The traction map's support: a disc of this many contact radii [default: whichever of
-    /// 1.1, 1.2, 1.3 and 1.5 gives the smallest held-out error].
+    /// The traction map's support: this many times the contact region's moment-equivalent
+    /// ellipse [default: whichever of 1.1, 1.2, 1.3 and 1.5 gives the smallest held-out
+    /// error].
     #[arg(long, value_name = "K")]
     support: Option<f64>,
+    /// Fit each channel only on the features that turn as it does (Fx, Fy from the mean
+    /// displacement, Fz from the radial spread, Tz from the curl): a shape or twist the
+    /// calibration never saw does not leak into another channel. For a force sensor whose
+    /// axes are the camera's (an indentation rig), not a jig whose sensor is turned.
+    #[arg(long)]
+    symmetric: bool,
 }
 
 impl Cmd {
@@ -51,6 +58,7 @@ impl Cmd {
             },
             cell_mm: self.cell_mm,
             support: self.support,
+            symmetric: self.symmetric,
         };
         let sensor = match calibrate(&self.runs, &opts) {
             Ok(s) => s,
@@ -62,9 +70,14 @@ impl Cmd {
         };
         sensor.write(&self.out)?;
         out!(
-            "calibrated on {} runs, {} frames; held out by {}:",
+            "calibrated on {} runs, {} frames{}; held out by {}:",
             sensor.calibrated_on.len(),
             sensor.model.samples,
+            if sensor.symmetric {
+                ", each channel on the features that turn as it does"
+            } else {
+                ""
+            },
             sensor.held_out.by
         );
         for (c, s) in &sensor.held_out.channels {

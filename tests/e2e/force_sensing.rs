@@ -276,11 +276,32 @@ fn the_traction_map_reads_unseen_punches_within_five_percent() {
             fz_pct(&symmetric, &sym_path, "symmetric"),
         );
         eprintln!("{name}: traction Fz {fz:.2} %, symmetric moments {fz_sym:.2} % of span");
-        assert!(fz < 5.0, "{name}: Fz {fz} % of span");
+        // Measured 0.6–2.3 % (traction) and 0.7–1.0 % (symmetric moments); the traction map
+        // on the equal-area disc of before read the rectangle 4.3 %.
+        assert!(fz < 3.0, "{name}: Fz {fz} % of span");
         assert!(
-            fz_sym < 5.0,
+            fz_sym < 3.0,
             "{name}: symmetric moments Fz {fz_sym} % of span"
         );
+        if name == "box-normal-rectangle" {
+            // A version 2 file (its support chosen for the equal-area disc) still reads, and
+            // reads with the disc: the same sensor then reads the rectangle otherwise.
+            let t = back.traction.unwrap();
+            assert!(t.ellipse);
+            let v2 = SensorFile {
+                version: 2,
+                traction: Some(experiments::sensor::file::TractionSettings {
+                    ellipse: false,
+                    ..t
+                }),
+                ..back.clone()
+            };
+            let v2_path = tmp.path().join("box-v2.yaml");
+            v2.write(&v2_path).unwrap();
+            let v2 = SensorFile::read(&v2_path).unwrap();
+            let disc = fz_pct(&v2, &v2_path, "disc");
+            assert!((disc - fz).abs() > 0.05, "disc {disc} %, ellipse {fz} %");
+        }
     }
     // Traction pictures from `gelrig track`: one map per frame with contact, calibrated,
     // whose Fz is the wrench's.

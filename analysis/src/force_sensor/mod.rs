@@ -90,7 +90,7 @@ fn symmetry(feature: &str) -> Option<Symmetry> {
 /// (round contacts only, a twist never combined with an elongated one), and a load without
 /// the coincidence then leaks in: fitted on every feature, a lifting can's twist read 0–36 N
 /// of Fz under a steady 5 N squeeze, and punch shapes the calibration never saw read Fz
-/// 5–7 % of span off. It assumes the force sensor's axes are the view's: in a grasp jig
+/// 2–7 % of span off. It assumes the force sensor's axes are the view's: in a grasp jig
 /// whose Nano17 is turned against the camera, Fy is the view's x, and a symmetric fit
 /// cannot map it. An unknown feature name is offered to every channel.
 pub fn channel_features(features: &[&str]) -> Vec<Vec<bool>> {

@@ -115,7 +115,8 @@ impl LinearModel {
         Self::fit_masked(x, y, None)
     }
 
-    /// As [`Self::fit`], channel `c` seeing only the features `masks[c]` marks.
+    /// As [`Self::fit`], channel `c` seeing only the features `masks[c]` marks (a channel
+    /// without a mask, and a feature past the end of one, is seen).
     pub fn fit_masked(
         x: &[Vec<f64>],
         y: &[Vec<f64>],
@@ -145,8 +146,7 @@ impl LinearModel {
             let keep: Vec<usize> = (0..p)
                 .filter(|&j| {
                     masks.is_none_or(|m| {
-                        m.get(c)
-                            .is_none_or(|mc| mc.get(j).copied().unwrap_or(false))
+                        m.get(c).is_none_or(|mc| mc.get(j).copied().unwrap_or(true))
                     })
                 })
                 .collect();

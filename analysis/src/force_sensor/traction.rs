@@ -79,6 +79,9 @@ pub struct TractionMap {
 
 /// Cells of side `cell_mm` inside the disc of `radius_mm` about `centre_mm`.
 pub fn disc_cells(centre_mm: [f64; 2], radius_mm: f64, cell_mm: f64) -> Vec<[f64; 2]> {
+    if !(radius_mm.is_finite() && cell_mm.is_finite() && cell_mm > 0.0) {
+        return Vec::new();
+    }
     let k = (radius_mm / cell_mm).ceil() as i64;
     let mut out = Vec::new();
     for j in -k..=k {
@@ -106,6 +109,13 @@ pub fn ellipse_cells(
     cell_mm: f64,
 ) -> Vec<[f64; 2]> {
     let [sxx, syy, sxy] = moments_mm2;
+    if !([sxx, syy, sxy, support, min_semi_mm, cell_mm]
+        .iter()
+        .all(|v| v.is_finite())
+        && cell_mm > 0.0)
+    {
+        return Vec::new();
+    }
     // Eigen-decomposition of the 2 × 2 moment tensor.
     let mean = 0.5 * (sxx + syy);
     let diff = (0.25 * (sxx - syy).powi(2) + sxy * sxy).sqrt();

@@ -56,8 +56,8 @@ pub struct CalibrateOptions {
     pub method: Method,
     /// The traction map's cell, mm.
     pub cell_mm: f64,
-    /// The traction map's support, in contact radii; `None`: the one of [`SUPPORTS`] with
-    /// the smallest held-out error.
+    /// The traction map's support, in multiples of the contact region's moment ellipse;
+    /// `None`: the one of [`SUPPORTS`] with the smallest held-out error.
     pub support: Option<f64>,
     /// Fit each channel only on the features that turn as it does
     /// ([`analysis::force_sensor::channel_features`]), for a force sensor whose axes are the
@@ -65,8 +65,9 @@ pub struct CalibrateOptions {
     pub symmetric: bool,
 }
 
-/// Supports tried when none is given, in contact radii: the image's contact region is the
-/// traction's support, a little wider for a region found short of the contact's edge.
+/// Supports tried when none is given, in multiples of the contact region's moment ellipse:
+/// the image's contact region is the traction's support, a little wider for a region found
+/// short of the contact's edge.
 pub const SUPPORTS: [f64; 4] = [1.1, 1.2, 1.3, 1.5];
 
 impl Default for CalibrateOptions {
@@ -329,6 +330,7 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
         kernel_dx_mm: (h / 8.0).min(opts.cell_mm / 2.0),
         cell_mm: opts.cell_mm,
         support: 1.0,
+        ellipse: true,
         lambda: 0.0,
     };
     let kernel = super::reader::kernel_from_view(&gathered.view, &base);

@@ -15,8 +15,9 @@ pub use super::scale::ScaleSettings;
 
 /// What every sensor file says it is.
 pub const FORMAT: &str = "gelrig-sensor";
-/// The newest version this build writes and reads (2 added `relaxation`).
-pub const VERSION: u32 = 2;
+/// The newest version this build writes and reads (2 added `relaxation`; 3 `symmetric` and
+/// the traction map's `ellipse`).
+pub const VERSION: u32 = 3;
 /// Field moments, ridge per channel ([`analysis::force_sensor`]).
 pub const METHOD: &str = "field-moments-ridge";
 /// The inverse traction map's integrals, ridge per channel
@@ -128,8 +129,14 @@ pub struct TractionSettings {
     pub kernel_dx_mm: f64,
     /// Cell of the traction map, mm.
     pub cell_mm: f64,
-    /// The map's support: a disc of this many times the contact's equivalent radius.
+    /// The map's support: this many times the contact region's moment-equivalent ellipse
+    /// (`ellipse`), or its equal-area disc.
     pub support: f64,
+    /// Whether the support follows the region's moment-equivalent ellipse (calibrated since
+    /// version 3); absent, as in older files, the equal-area disc their `support` was chosen
+    /// for.
+    #[serde(default)]
+    pub ellipse: bool,
     /// Tikhonov regularisation (the median of GCV's choices over the calibration).
     pub lambda: f64,
 }

@@ -115,6 +115,7 @@ pub fn write_maps(
                 kernel_dx_mm: (thickness_mm / 8.0).min(0.5),
                 cell_mm: (thickness_mm / 2.0).clamp(0.5, 1.0),
                 support: 1.3,
+                ellipse: true,
                 lambda: 0.0,
             };
             (

@@ -99,11 +99,23 @@ pub(crate) fn contact_of(
     rows.iter()
         .find(|r| r.frame == frame && r.radius_px > 0.0)
         .and_then(|r| {
-            Some(history::Region {
-                centroid_px: [r.cx_px?, r.cy_px?],
+            let centroid_px = [r.cx_px?, r.cy_px?];
+            // A region that does not measure (an edited or damaged file) is no region: its
+            // support would have no end.
+            let finite = centroid_px.iter().all(|v| v.is_finite()) && r.radius_px.is_finite();
+            finite.then_some(history::Region {
+                centroid_px,
                 radius_px: r.radius_px,
                 second_moments_px2: match (r.sxx_px2, r.syy_px2, r.sxy_px2) {
-                    (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+                    (Some(a), Some(b), Some(c))
+                        if a.is_finite()
+                            && b.is_finite()
+                            && c.is_finite()
+                            && a >= 0.0
+                            && b >= 0.0 =>
+                    {
+                        Some([a, b, c])
+                    }
                     _ => None,
                 },
             })
@@ -187,5 +199,53 @@ fn unfit(dir: &Path, detail: impl Into<String>, fix: &'static str) -> SensorErro
         path: dir.to_path_buf(),
         detail: detail.into(),
         fix,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::contact_of;
+
+    /// A `contact.csv` written before the moment columns reads as discs; a damaged one (an
+    /// infinite or negative moment, an infinite radius) does not give a region whose
+    /// support has no end.
+    #[test]
+    fn contact_rows_old_and_damaged() {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let old = dir.path().join("old.csv");
+        std::fs::write(
+            &old,
+            "frame,area_px2,area_mm2,cx_px,cy_px,radius_mm,radius_px\n\
+             0,0.0,0.0,,,0.0,0.0\n\
+             1,5026.5,4.9,320.0,240.0,1.25,40.0\n",
+        )
+        .expect("written");
+        let rows: Vec<crate::run_data::ContactRow> =
+            crate::run_data::read_csv(&old).expect("an old contact.csv reads");
+        assert_eq!(contact_of(&rows, 0), None, "no contact in frame 0");
+        let r = contact_of(&rows, 1).expect("a region");
+        assert_eq!((r.centroid_px, r.radius_px), ([320.0, 240.0], 40.0));
+        assert_eq!(r.second_moments_px2, None, "an old file's region is a disc");
+        let new = dir.path().join("new.csv");
+        std::fs::write(
+            &new,
+            "frame,area_px2,area_mm2,cx_px,cy_px,radius_mm,radius_px,sxx_px2,syy_px2,sxy_px2\n\
+             1,5026.5,4.9,320.0,240.0,1.25,40.0,900.0,300.0,10.0\n\
+             2,5026.5,4.9,320.0,240.0,1.25,40.0,inf,300.0,10.0\n\
+             3,5026.5,4.9,320.0,240.0,1.25,40.0,-5.0,300.0,10.0\n\
+             4,5026.5,4.9,320.0,240.0,1.25,inf,400.0,400.0,0.0\n",
+        )
+        .expect("written");
+        let rows: Vec<crate::run_data::ContactRow> =
+            crate::run_data::read_csv(&new).expect("a new contact.csv reads");
+        let m = |f: u64| contact_of(&rows, f).and_then(|r| r.second_moments_px2);
+        assert_eq!(m(1), Some([900.0, 300.0, 10.0]));
+        assert_eq!(m(2), None, "an infinite moment is dropped");
+        assert_eq!(m(3), None, "a negative one too");
+        assert_eq!(
+            contact_of(&rows, 4),
+            None,
+            "an infinite radius is no region"
+        );
     }
 }

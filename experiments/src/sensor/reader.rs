@@ -69,8 +69,8 @@ impl Reader {
         self.fz_range_n
     }
 
-    /// Reads one frame's `field` with its contact region (centroid, equivalent radius, px),
-    /// its markers matched to the layout by `map`.
+    /// Reads one frame's `field` with its contact region, its markers matched to the layout
+    /// by `map`.
     pub fn read(
         &self,
         field: &MarkerField,
@@ -116,7 +116,7 @@ pub(crate) fn kernel_from_view(view: &View, t: &TractionSettings) -> TractionKer
 
 /// The traction map of displacements `u_mm` at the layout's markers, on `support` times the
 /// contact's moment-equivalent ellipse (its equivalent disc where the region has no recorded
-/// moments); `None` without contact.
+/// moments, or the sensor's support was chosen for the disc); `None` without contact.
 pub(crate) fn traction_map(
     layout: &Layout,
     kernel: &TractionKernel,
@@ -134,7 +134,9 @@ pub(crate) fn traction_map(
         ]
     };
     let (c_px, r_px) = (region.centroid_px, region.radius_px);
-    let cells = match region.second_moments_px2 {
+    // A sensor whose support was chosen for the equal-area disc (before version 3) reads
+    // with the disc, whatever the region's moments.
+    let cells = match region.second_moments_px2.filter(|_| t.ellipse) {
         Some(m) => traction::ellipse_cells(
             to_mm(c_px),
             [m[0] * s * s, m[1] * s * s, m[2] * s * s],

@@ -29,7 +29,7 @@ pub(crate) fn sim_rig() -> PathBuf {
 }
 
 /// Every shipped protocol's name.
-pub(crate) const SHIPPED: [&str; 13] = [
+pub(crate) const SHIPPED: [&str; 14] = [
     "box-normal-flat",
     "box-shear-flat",
     "box-normal-sphere",
@@ -37,6 +37,7 @@ pub(crate) const SHIPPED: [&str; 13] = [
     "box-normal-ellipse",
     "box-normal-rectangle",
     "box-normal-triangle",
+    "box-rotation",
     "portable-normal",
     "portable-shear",
     "portable-rotation",

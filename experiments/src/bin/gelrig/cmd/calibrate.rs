@@ -22,9 +22,10 @@ pub(crate) struct Cmd {
     /// combined loads).
     #[arg(long, default_value = "moments", value_parser = ["moments", "traction", "scale"])]
     method: String,
-    /// The traction map's cell, mm.
-    #[arg(long, value_name = "MM", default_value_t = 1.0)]
-    cell_mm: f64,
+    /// The traction map's cell, mm [default: whichever of 1, 1.5 and 2 mm (each with its
+    /// best support) gives the smallest held-out error].
+    #[arg(long, value_name = "MM")]
+    cell_mm: Option<f64>,
     /// The traction map's support: this many times the contact region's moment-equivalent
     /// ellipse [default: whichever of 1.1, 1.2, 1.3 and 1.5 gives the smallest held-out
     /// error].
@@ -41,12 +42,15 @@ pub(crate) struct Cmd {
 impl Cmd {
     pub(crate) fn run(self) -> anyhow::Result<ExitCode> {
         let support_ok = self.support.is_none_or(|s| s.is_finite() && s >= 1.0);
-        if !(self.cell_mm.is_finite() && self.cell_mm >= 0.1 && support_ok) {
+        let cell_ok = self.cell_mm.is_none_or(|c| c.is_finite() && c >= 0.1);
+        if !(cell_ok && support_ok) {
+            let shown =
+                |v: Option<f64>| v.map_or_else(|| "(chosen)".to_string(), |v| v.to_string());
             err!(
-                "error: --cell-mm {} / --support {:?}: fix: a cell of at least 0.1 mm and a \
+                "error: --cell-mm {} / --support {}: fix: a cell of at least 0.1 mm and a \
                  support of at least 1 contact radius",
-                self.cell_mm,
-                self.support
+                shown(self.cell_mm),
+                shown(self.support)
             );
             return Ok(ExitCode::from(super::EXIT_INVALID));
         }

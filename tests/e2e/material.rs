@@ -234,3 +234,83 @@ fn a_material_from_a_file_that_is_not_one_is_refused_at_its_line() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("fix:"), "{err}");
 }
+
+/// Poisson's ratio from two flat punch sizes on one gel: the box's 9.5 mm punch pressed in
+/// steps and its 12.68 mm punch's preload, on a gel of ν 0.47 whose run directories claim 0.49
+/// (their `protocol.yaml` edited after the runs), so the fit cannot take ν from them. One
+/// punch size alone holds ν at what the runs claim, and says why.
+#[test]
+fn two_flat_punch_sizes_tell_poissons_ratio_and_one_does_not() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gel = "sensor: {kind: box, material: {youngs_modulus: 0.3 MPa, poisson_ratio: 0.47, \
+               friction: 0.6, prony: [{weight: 0.3, tau: 3 s}]}}";
+    // Shorter holds and fewer shear steps than the shipped runs: the fit needs the presses.
+    let edit = |name: &str| {
+        let text = shipped_text(name)
+            .replace("sensor: {kind: box}", gel)
+            .replace("settle: {fixed: 180 s}", "settle: {fixed: 40 s}")
+            .replace("to: 1 mm", "to: 0.2 mm");
+        assert!(text.contains("poisson_ratio: 0.47"), "{name}");
+        text
+    };
+    let runs: Vec<PathBuf> = ["box-normal-flat", "box-shear-flat"]
+        .iter()
+        .map(|n| dry(&tmp.path().join(n), &edit(n), 5))
+        .collect();
+    for r in &runs {
+        let p = r.join("protocol.yaml");
+        let text = std::fs::read_to_string(&p).unwrap();
+        std::fs::write(
+            &p,
+            text.replace("poisson_ratio: 0.47", "poisson_ratio: 0.49"),
+        )
+        .unwrap();
+    }
+    let fit = |runs: &[PathBuf], out: &Path| {
+        let o = std::process::Command::new(gelrig())
+            .arg("fit-material")
+            .args(runs)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (
+            MaterialFile::read(out).unwrap(),
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+        )
+    };
+    let (both, stdout) = fit(&runs, &tmp.path().join("both.yaml"));
+    eprintln!("{stdout}");
+    let m = &both.material;
+    assert!(
+        (m.poisson_ratio - 0.47).abs() < 0.005,
+        "ν {} (source 0.47, the runs claim 0.49)",
+        m.poisson_ratio
+    );
+    let sd = both
+        .uncertainty
+        .poisson_ratio
+        .expect("ν fitted, with its uncertainty");
+    assert!(sd > 0.0 && sd < 0.02, "ν ± {sd}");
+    within(m.youngs_modulus.mpa(), 0.3, 0.02, "E∞");
+    assert!(stdout.contains("ν = 0.4"), "{stdout}");
+    assert!(
+        both.provenance.iter().any(|p| p.contains("flat punches")),
+        "{:?}",
+        both.provenance
+    );
+    // One punch size: ν held at the claimed 0.49, and E∞ then reads the gel's E∞·κ(0.47)/κ(0.49)
+    // — what a force record of one indenter can say.
+    let (one, stdout) = fit(&runs[..1], &tmp.path().join("one.yaml"));
+    assert_eq!(one.material.poisson_ratio, 0.49, "{stdout}");
+    assert!(one.uncertainty.poisson_ratio.is_none());
+    assert!(stdout.contains("ν held at 0.49"), "{stdout}");
+    assert!(
+        one.provenance
+            .iter()
+            .any(|p| p.contains("two flat punch sizes")),
+        "{:?}",
+        one.provenance
+    );
+}

@@ -537,7 +537,7 @@ fn every_shipped_protocol_states_the_values_it_assumes() {
             "{name}: the gel is not stated as run: {gel}"
         );
         // A preload the thesis does not give is stated with why it was chosen.
-        for assumed in ["box-shear-flat", "portable-rotation"] {
+        for assumed in ["box-shear-flat", "box-rotation", "portable-rotation"] {
             if name == assumed {
                 assert!(
                     text.contains("# - the preload"),

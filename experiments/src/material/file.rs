@@ -10,8 +10,9 @@ use crate::protocol::schema::MaterialSpec;
 
 /// What every material file says it is.
 pub const FORMAT: &str = "gelrig-material";
-/// The newest version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The newest version this build writes and reads; version 1 files (without ν's
+/// uncertainty) still read.
+pub const VERSION: u32 = 2;
 
 /// Why a material file could not be read or written.
 #[derive(Debug, thiserror::Error)]
@@ -68,6 +69,9 @@ pub struct Uncertainty {
     /// Of the static friction coefficient, where it was fitted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction: Option<f64>,
+    /// Of Poisson's ratio, where pressing runs of two indenters or more told it (version 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub poisson_ratio: Option<f64>,
 }
 
 /// One Prony term's uncertainties.
@@ -133,7 +137,7 @@ impl MaterialFile {
             ));
         }
         match h.version {
-            Some(VERSION) => {}
+            Some(1 | VERSION) => {}
             Some(v) if v > VERSION => {
                 return Err(err(
                     format!("written by a newer gelrig (version {v}; this one reads {VERSION})"),

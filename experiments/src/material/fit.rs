@@ -4,17 +4,19 @@
 //! terms and each run's contact offset ([`analysis::material_fit`]); shear runs that reach
 //! gross slip give the static friction coefficient (the largest tangential-to-normal ratio
 //! up to the first slipping step, [`analysis::slip`]) and the sliding one (the mean ratio of
-//! the steps after). Poisson's ratio is held at the protocols' value: the force of a given
-//! indenter depends on E and ν together (through E* and the layer's κ(ν)), and a force
-//! record alone cannot tell them apart.
+//! the steps after). Poisson's ratio: the force of one indenter depends on E and ν together
+//! (through E* and the layer's κ(ν)), so one indenter's record cannot tell them apart and ν
+//! is held at the protocols' value; pressing runs of two indenters or more can, and ν is
+//! fitted where their moduli agree ([`super::poisson`]).
 
 use std::path::{Path, PathBuf};
 
 use analysis::material_fit::{MaterialFit, PressRecord, fit_material};
-use mechanics::response::{ContactModel, ModelSpec};
+use mechanics::response::ModelSpec;
 use rig::units::{Duration, Pressure};
 
 use super::file::{FORMAT, FittedRun, MaterialFile, TermUncertainty, Uncertainty, VERSION};
+use super::law::{ForceLaw, interp};
 use crate::protocol::schema::{MaterialSpec, PronySpec};
 use crate::run_data::{RunData, StepRow, read_run_tables};
 
@@ -50,9 +52,10 @@ struct Run {
     speeds: std::collections::BTreeMap<u32, f64>,
     /// The speed of the approach that found the contact on a pressing axis, mm/s.
     approach_speed: Option<f64>,
-    /// The elastic force at unit modulus (1 MPa) against depth, from the run's indenter
-    /// and layer (a depth table, linearly interpolated).
-    unit_force: Option<(Vec<f64>, Vec<f64>)>,
+    /// The run's indenter and layer, whose elastic force law is built at any ν.
+    law: ForceLaw,
+    /// The indenter, as its protocol gives it: runs of different indenters tell ν.
+    indenter: String,
 }
 
 /// Fits a material to `runs` (run directories made by `gelrig run`).
@@ -112,21 +115,83 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
         ));
     }
     let records: Vec<PressRecord> = pressing.iter().map(|(_, p)| p.clone()).collect();
-    let tables: Vec<&(Vec<f64>, Vec<f64>)> = pressing
+    let laws: Vec<&ForceLaw> = pressing.iter().map(|(k, _)| &read[*k].law).collect();
+    let no_model = || unfit(first, "a run's indenter has no model", "report this");
+    let tables_at = |nu: f64| -> Option<Vec<(Vec<f64>, Vec<f64>)>> {
+        laws.iter().map(|l| l.table(nu)).collect()
+    };
+    let joint = |tables: &[(Vec<f64>, Vec<f64>)]| {
+        fit_material(&records, &|k, d| interp(&tables[k], d)).ok_or_else(|| {
+            unfit(
+                first,
+                "the pressing records cannot be fitted (too short, or no relaxation model fits)",
+                "fit on runs whose steps hold at least 10 s with a force record throughout",
+            )
+        })
+    };
+    let tables0 = tables_at(nu).ok_or_else(no_model)?;
+    // Flat punches of two sizes or more tell ν; one indenter's record cannot, and a curved
+    // indenter's law changes its shape with ν while its contact offset trades with the
+    // modulus (a 9.5 mm punch and a 12.68 mm sphere told 0.483 for a gel of 0.49 on dry runs).
+    let flat: Vec<usize> = (0..pressing.len()).filter(|&j| laws[j].is_flat()).collect();
+    let mut indenters: Vec<&str> = flat
         .iter()
-        .map(|(k, _)| read[*k].unit_force.as_ref())
-        .collect::<Option<_>>()
-        .ok_or_else(|| unfit(first, "a run's indenter has no model", "report this"))?;
-    let phi = |k: usize, d: f64| interp(tables[k], d);
-    let fit = fit_material(&records, &phi).ok_or_else(|| {
-        unfit(
-            first,
-            "the pressing records cannot be fitted (too short, or no relaxation model fits)",
-            "fit on runs whose steps hold at least 10 s with a force record throughout",
-        )
-    })?;
+        .map(|&j| read[pressing[j].0].indenter.as_str())
+        .collect();
+    indenters.sort_unstable();
+    indenters.dedup();
+    let poisson = (indenters.len() >= 2).then(|| {
+        let recs: Vec<PressRecord> = flat.iter().map(|&j| records[j].clone()).collect();
+        let tabs: Vec<(Vec<f64>, Vec<f64>)> = flat.iter().map(|&j| tables0[j].clone()).collect();
+        super::poisson::fit_poisson(&recs, &tabs, nu, indenters.len(), &|k, nu| {
+            laws[flat[k]].table(nu)
+        })
+    });
+    let (fit, nu_fit) = match &poisson {
+        Some(Ok(p)) => {
+            let tables = tables_at(p.nu).ok_or_else(no_model)?;
+            (joint(&tables)?, Some(p))
+        }
+        _ => (joint(&tables0)?, None),
+    };
     let friction = friction_of(&read);
-    Ok(file(&read, &pressing, &fit, friction, nu))
+    let kinds = {
+        let mut all: Vec<&str> = pressing
+            .iter()
+            .map(|(k, _)| read[*k].indenter.as_str())
+            .collect();
+        all.sort_unstable();
+        all.dedup();
+        all.len()
+    };
+    let held_why = match &poisson {
+        Some(Err(why)) => why.clone(),
+        _ if kinds >= 2 => "a curved indenter's force law changes its shape with ν and its \
+                            contact offset trades with the modulus, so it does not tell ν; \
+                            pressing runs of two flat punch sizes do"
+            .to_string(),
+        _ => "a force record of one indenter cannot tell E from ν; pressing runs of two flat \
+              punch sizes can"
+            .to_string(),
+    };
+    Ok(file(
+        &read,
+        &pressing,
+        &fit,
+        friction,
+        Poisson {
+            nu: nu_fit.map_or(nu, |p| p.nu),
+            fitted: nu_fit.cloned(),
+            held_why,
+        },
+    ))
+}
+
+/// Poisson's ratio: fitted, or held at the protocols' value and why.
+struct Poisson {
+    nu: f64,
+    fitted: Option<super::poisson::PoissonFit>,
+    held_why: String,
 }
 
 fn read_one(dir: &Path) -> Result<Run, FitError> {
@@ -159,51 +224,23 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
         .and_then(|m| m.values())
         .cloned()
         .ok_or_else(|| unfit(dir, "its protocol gives no material", "report this"))?;
-    let pressing_friction = loaded
-        .rig
-        .sim
-        .as_ref()
-        .and_then(|s| s.pressing_friction)
-        .unwrap_or(false);
-    let finite_strain = loaded
-        .rig
-        .sim
-        .as_ref()
-        .and_then(|s| s.finite_strain)
-        .unwrap_or(false);
-    let h = spec.contact.layer.thickness_mm;
+    let sim = loaded.rig.sim.as_ref();
     // The layer's force at 1 MPa: the contact model is linear in the modulus.
     let mut contact = spec.contact.clone();
     contact.material.youngs_modulus_mpa = 1.0;
-    let depths: Vec<f64> = (0..=200)
-        .map(|i| spec.max_depth_mm * i as f64 / 200.0)
-        .collect();
-    let unit_force = ContactModel::build(ModelSpec {
-        contact,
-        max_depth_mm: spec.max_depth_mm,
-        shear: false,
-        twist: false,
-        field_view_mm: None,
-        pressing_friction,
-        quality: spec.quality,
-    })
-    .ok()
-    .map(|m| {
-        // The bench's own force law: at finite strain where its rig presses so.
-        let f: Vec<f64> = depths
-            .iter()
-            .map(|&d| {
-                let s = if finite_strain && m.is_flat() {
-                    let a = m.contact_radius_mm(d);
-                    mechanics::finite_strain::flat_punch_stiffening(d / h, a / h)
-                } else {
-                    1.0
-                };
-                m.normal_force_n(d) * s
-            })
-            .collect();
-        (depths, f)
-    });
+    let law = ForceLaw {
+        spec: ModelSpec {
+            contact,
+            max_depth_mm: spec.max_depth_mm,
+            shear: false,
+            twist: false,
+            field_view_mm: None,
+            pressing_friction: sim.and_then(|s| s.pressing_friction).unwrap_or(false),
+            quality: spec.quality,
+        },
+        finite_strain: sim.and_then(|s| s.finite_strain).unwrap_or(false),
+    };
+    let indenter = serde_json::to_string(&loaded.protocol.indenter).unwrap_or_default();
     let speeds = loaded
         .compiled
         .actions
@@ -229,19 +266,9 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
         sensor,
         speeds,
         approach_speed,
-        unit_force,
+        law,
+        indenter,
     })
-}
-
-/// Linear interpolation in a depth table, zero out of contact, extended linearly past its
-/// end.
-fn interp((d, f): &(Vec<f64>, Vec<f64>), x: f64) -> f64 {
-    if x <= 0.0 || d.len() < 2 {
-        return 0.0;
-    }
-    let i = d.partition_point(|v| *v < x).clamp(1, d.len() - 1);
-    let w = (x - d[i - 1]) / (d[i] - d[i - 1]).max(1e-300);
-    f[i - 1] + w * (f[i] - f[i - 1])
 }
 
 /// How much of the approach before the first step the record keeps, s.
@@ -367,8 +394,9 @@ fn file(
     pressing: &[(usize, PressRecord)],
     fit: &MaterialFit,
     friction: Option<Friction>,
-    nu: f64,
+    poisson: Poisson,
 ) -> MaterialFile {
+    let nu = poisson.nu;
     let assumed = &runs[pressing[0].0].assumed;
     let (mu, mu_kinetic) = match &friction {
         Some(f) => (
@@ -402,7 +430,18 @@ fn file(
             fit.lag_s.value,
             fit.lag_s.sd
         ),
-        format!("poisson_ratio: held at the protocols' {nu} (a force record cannot tell E from ν)"),
+        match &poisson.fitted {
+            Some(p) => format!(
+                "poisson_ratio: {:.4} ± {:.4}, where the apparent moduli of {} flat punches' \
+                 pressing runs agree (the protocols assumed {}; each run fitted on its own, \
+                 then the whole record again at the fitted ν)",
+                p.nu, p.sd, p.indenters, p.assumed
+            ),
+            None => format!(
+                "poisson_ratio: held at the protocols' {nu} ({})",
+                poisson.held_why
+            ),
+        },
     ];
     provenance.push(match &friction {
         Some(f) => format!(
@@ -458,6 +497,7 @@ fn file(
                 })
                 .collect(),
             friction: friction.as_ref().map(|f| f.static_sd),
+            poisson_ratio: poisson.fitted.as_ref().map(|p| p.sd),
         },
         provenance,
         fitted_on,

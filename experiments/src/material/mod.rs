@@ -3,6 +3,8 @@
 
 pub mod file;
 pub mod fit;
+mod law;
+pub mod poisson;
 
 pub use file::{MaterialFile, MaterialFileError};
 pub use fit::{FitError, fit};

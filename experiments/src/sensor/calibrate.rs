@@ -74,9 +74,12 @@ pub const SUPPORTS: [f64; 4] = [1.1, 1.2, 1.3, 1.5];
 /// Cells tried when none is given, mm. Which one reads best depends on the layer: on the
 /// 2 mm portable pad a 1.5 mm cell's held-out Fz is a half to a quarter of a 1 mm cell's, on the
 /// 4.2 mm box pad they are close (BENCHMARKS.md, "Force from the GelSight"), so the
-/// calibration's own held-out error chooses, as it chooses the support. A 0.75 mm cell is
-/// not tried: it triples the calibration's time (57 s against 20 s on the box's five runs)
-/// and the reading's, and read no better where it was measured.
+/// calibration's own held-out error chooses, as it chooses the support: the sum of the four
+/// channels' held-out % (a channel the calibration runs hardly load — Tz without a twisting
+/// run — adds its noise to every candidate alike, and can tip a close choice). A 0.75 mm cell
+/// is not tried: it triples the calibration's time (57 s against 20 s on the box's five runs)
+/// and the reading's, for a held-out Fz no better than 1 mm's (the unseen ellipse and
+/// rectangle half a point closer).
 pub const CELLS: [f64; 3] = [1.0, 1.5, 2.0];
 
 impl Default for CalibrateOptions {
@@ -353,7 +356,8 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
             let t = traction_settings(&gathered, &kernel, TractionSettings { support, ..base });
             let file = finish(&gathered, &How::Traction(&kernel, t), first, opts.symmetric)?;
             let score: f64 = file.held_out.channels.values().map(|s| s.pct_range).sum();
-            if best.as_ref().is_none_or(|(b, _)| score < *b) {
+            // A candidate whose held-out error is not a number is no candidate.
+            if score.is_finite() && best.as_ref().is_none_or(|(b, _)| score < *b) {
                 best = Some((score, file));
             }
         }
@@ -361,8 +365,9 @@ pub fn calibrate(runs: &[PathBuf], opts: &CalibrateOptions) -> Result<SensorFile
     best.map(|(_, f)| f).ok_or_else(|| {
         unfit(
             first,
-            "no cell or support to try",
-            "give --cell-mm and --support",
+            "no cell and support gave a finite held-out error",
+            "calibrate on runs whose force record and frames overlap, or give --cell-mm and \
+             --support",
         )
     })
 }

@@ -32,12 +32,20 @@ impl Cmd {
         }
         let m = &file.material;
         let u = &file.uncertainty;
-        out!(
-            "E∞ = {:.4} ± {:.4} MPa (ν held at {})",
-            m.youngs_modulus.mpa(),
-            u.youngs_modulus_mpa,
-            m.poisson_ratio
-        );
+        match u.poisson_ratio {
+            Some(sd) => out!(
+                "E∞ = {:.4} ± {:.4} MPa, ν = {:.4} ± {sd:.4} (where the indenters' moduli agree)",
+                m.youngs_modulus.mpa(),
+                u.youngs_modulus_mpa,
+                m.poisson_ratio
+            ),
+            None => out!(
+                "E∞ = {:.4} ± {:.4} MPa (ν held at {})",
+                m.youngs_modulus.mpa(),
+                u.youngs_modulus_mpa,
+                m.poisson_ratio
+            ),
+        }
         for (t, s) in m.prony.iter().zip(&u.prony) {
             out!(
                 "  Prony term: weight {:.4} ± {:.4}, τ {:.3} ± {:.3} s",

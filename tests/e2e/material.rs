@@ -238,7 +238,8 @@ fn a_material_from_a_file_that_is_not_one_is_refused_at_its_line() {
 /// Poisson's ratio from two flat punch sizes on one gel: the box's 9.5 mm punch pressed in
 /// steps and its 12.68 mm punch's preload, on a gel of ν 0.47 whose run directories claim 0.49
 /// (their `protocol.yaml` edited after the runs), so the fit cannot take ν from them. One
-/// punch size alone holds ν at what the runs claim, and says why.
+/// punch size alone holds ν at what the runs claim, and says why; so does a punch with a
+/// sphere, whose law changes its shape with ν (counted, it told 0.483 for a gel of 0.49).
 #[test]
 fn two_flat_punch_sizes_tell_poissons_ratio_and_one_does_not() {
     let tmp = tempfile::tempdir().unwrap();
@@ -253,7 +254,7 @@ fn two_flat_punch_sizes_tell_poissons_ratio_and_one_does_not() {
         assert!(text.contains("poisson_ratio: 0.47"), "{name}");
         text
     };
-    let runs: Vec<PathBuf> = ["box-normal-flat", "box-shear-flat"]
+    let runs: Vec<PathBuf> = ["box-normal-flat", "box-shear-flat", "box-normal-sphere"]
         .iter()
         .map(|n| dry(&tmp.path().join(n), &edit(n), 5))
         .collect();
@@ -280,7 +281,7 @@ fn two_flat_punch_sizes_tell_poissons_ratio_and_one_does_not() {
             String::from_utf8_lossy(&o.stdout).into_owned(),
         )
     };
-    let (both, stdout) = fit(&runs, &tmp.path().join("both.yaml"));
+    let (both, stdout) = fit(&runs[..2], &tmp.path().join("both.yaml"));
     eprintln!("{stdout}");
     let m = &both.material;
     assert!(
@@ -312,5 +313,28 @@ fn two_flat_punch_sizes_tell_poissons_ratio_and_one_does_not() {
             .any(|p| p.contains("two flat punch sizes")),
         "{:?}",
         one.provenance
+    );
+    // The fitted ν's uncertainty reaches E∞'s: wider than a fit at a held ν.
+    assert!(
+        both.uncertainty.youngs_modulus_mpa > 10.0 * one.uncertainty.youngs_modulus_mpa,
+        "E∞ ± {} (ν fitted) against ± {} (held)",
+        both.uncertainty.youngs_modulus_mpa,
+        one.uncertainty.youngs_modulus_mpa
+    );
+    // A file with nothing of version 2 in it is written as version 1.
+    assert_eq!((both.version, one.version), (2, 1));
+    // A flat punch with a sphere: ν held, and why.
+    let (curved, stdout) = fit(
+        &[runs[0].clone(), runs[2].clone()],
+        &tmp.path().join("c.yaml"),
+    );
+    assert_eq!(curved.material.poisson_ratio, 0.49, "{stdout}");
+    assert!(
+        curved
+            .provenance
+            .iter()
+            .any(|p| p.contains("only flat circular punches")),
+        "{:?}",
+        curved.provenance
     );
 }

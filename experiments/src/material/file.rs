@@ -147,7 +147,7 @@ impl MaterialFile {
             v => {
                 return Err(err(
                     format!(
-                        "version {} is not one this gelrig reads ({VERSION})",
+                        "version {} is not one this gelrig reads (1 to {VERSION})",
                         v.map_or_else(|| "missing".to_string(), |v| v.to_string())
                     ),
                     FIX,

@@ -130,27 +130,47 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
         })
     };
     let tables0 = tables_at(nu).ok_or_else(no_model)?;
-    // Flat punches of two sizes or more tell ν; one indenter's record cannot, and a curved
-    // indenter's law changes its shape with ν while its contact offset trades with the
-    // modulus (a 9.5 mm punch and a 12.68 mm sphere told 0.483 for a gel of 0.49 on dry runs).
-    let flat: Vec<usize> = (0..pressing.len()).filter(|&j| laws[j].is_flat()).collect();
-    let mut indenters: Vec<&str> = flat
-        .iter()
-        .map(|&j| read[pressing[j].0].indenter.as_str())
+    // Flat circular punches of two sizes or more tell ν; one indenter's record cannot, and a
+    // curved indenter's law changes its shape with ν while its contact offset trades with
+    // the modulus (a 9.5 mm punch and a 12.68 mm sphere told 0.483 for a gel of 0.49 on dry
+    // runs). Sizes closer than SIZES_APART in a/h part too little with ν to count as two.
+    let flat: Vec<(usize, f64)> = (0..pressing.len())
+        .filter_map(|j| Some((j, laws[j].flat_circle_a_over_h()?)))
         .collect();
-    indenters.sort_unstable();
-    indenters.dedup();
-    let poisson = (indenters.len() >= 2).then(|| {
-        let recs: Vec<PressRecord> = flat.iter().map(|&j| records[j].clone()).collect();
-        let tabs: Vec<(Vec<f64>, Vec<f64>)> = flat.iter().map(|&j| tables0[j].clone()).collect();
-        super::poisson::fit_poisson(&recs, &tabs, nu, indenters.len(), &|k, nu| {
-            laws[flat[k]].table(nu)
-        })
+    let sizes = {
+        let mut a: Vec<f64> = flat.iter().map(|f| f.1).collect();
+        a.sort_by(f64::total_cmp);
+        let mut n = usize::from(!a.is_empty());
+        let mut last = a.first().copied().unwrap_or(0.0);
+        for &x in &a {
+            if x > last * SIZES_APART {
+                n += 1;
+                last = x;
+            }
+        }
+        n
+    };
+    let poisson = (sizes >= 2).then(|| {
+        let recs: Vec<PressRecord> = flat.iter().map(|&(j, _)| records[j].clone()).collect();
+        let tabs: Vec<(Vec<f64>, Vec<f64>)> =
+            flat.iter().map(|&(j, _)| tables0[j].clone()).collect();
+        super::poisson::fit_poisson(&recs, &tabs, nu, sizes, &|k, nu| laws[flat[k].0].table(nu))
     });
+    let mut refit_failed = None;
     let (fit, nu_fit) = match &poisson {
         Some(Ok(p)) => {
-            let tables = tables_at(p.nu).ok_or_else(no_model)?;
-            (joint(&tables)?, Some(p))
+            // The whole record again at the fitted ν; should it not fit there, ν stays held.
+            match tables_at(p.nu).map(|t| joint(&t)) {
+                Some(Ok(fit)) => (fit, Some(p)),
+                _ => {
+                    refit_failed = Some(format!(
+                        "the runs' moduli agreed at ν {:.4}, but the whole record does not fit \
+                         there",
+                        p.nu
+                    ));
+                    (joint(&tables0)?, None)
+                }
+            }
         }
         _ => (joint(&tables0)?, None),
     };
@@ -165,10 +185,11 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
         all.len()
     };
     let held_why = match &poisson {
+        _ if refit_failed.is_some() => refit_failed.unwrap_or_default(),
         Some(Err(why)) => why.clone(),
-        _ if kinds >= 2 => "a curved indenter's force law changes its shape with ν and its \
-                            contact offset trades with the modulus, so it does not tell ν; \
-                            pressing runs of two flat punch sizes do"
+        _ if kinds >= 2 => "only flat circular punches of two sizes (a/h 15 % apart or more) \
+                            tell ν: a curved indenter's force law changes its shape with ν and \
+                            its contact offset trades with the modulus"
             .to_string(),
         _ => "a force record of one indenter cannot tell E from ν; pressing runs of two flat \
               punch sizes can"
@@ -186,6 +207,10 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
         },
     ))
 }
+
+/// Flat punches whose a/h differ by less than this factor count as one size for ν: their
+/// force ratio moves too little with ν for the model's own error to stay out of it.
+const SIZES_APART: f64 = 1.15;
 
 /// Poisson's ratio: fitted, or held at the protocols' value and why.
 struct Poisson {
@@ -483,11 +508,17 @@ fn file(
     fitted_on.sort_by(|a, b| a.run.cmp(&b.run));
     MaterialFile {
         format: FORMAT.into(),
-        version: VERSION,
+        // Version 1 where nothing of version 2 is in it, so older readers still take it.
+        version: if poisson.fitted.is_some() { VERSION } else { 1 },
         created: jiff::Timestamp::now().to_string(),
         material,
         uncertainty: Uncertainty {
-            youngs_modulus_mpa: fit.modulus_ratio.sd,
+            // A fitted ν's uncertainty reaches E∞ through the force law's dependence on it.
+            youngs_modulus_mpa: poisson.fitted.as_ref().map_or(fit.modulus_ratio.sd, |p| {
+                fit.modulus_ratio
+                    .sd
+                    .hypot(fit.modulus_ratio.value * p.log_modulus_per_nu * p.sd)
+            }),
             prony: fit
                 .terms
                 .iter()

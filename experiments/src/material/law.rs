@@ -14,9 +14,16 @@ pub(super) struct ForceLaw {
 }
 
 impl ForceLaw {
-    /// Whether the indenter is a flat punch, whose law only scales with ν.
-    pub(super) fn is_flat(&self) -> bool {
-        self.spec.contact.indenter.flat_area_mm2().is_some()
+    /// The radius of a flat circular punch over the layer's thickness, a/h: the one
+    /// indenter whose law only scales with ν, through the layer's κ(a/h, ν) solved exactly
+    /// (other flat shapes come from a grid whose residual's dependence on ν is unchecked).
+    pub(super) fn flat_circle_a_over_h(&self) -> Option<f64> {
+        match self.spec.contact.indenter {
+            mechanics::Indenter::FlatCircle { diameter_mm } => {
+                Some(0.5 * diameter_mm / self.spec.contact.layer.thickness_mm)
+            }
+            _ => None,
+        }
     }
 
     /// The force at 1 MPa against depth at Poisson's ratio `nu` (a depth table, linearly

@@ -4,15 +4,18 @@
 //! 2a·E·κ(a/h, ν)·d/(1 − ν²), so its record fits E for whatever ν is assumed — a force
 //! record cannot tell them apart. Indenters of different a/h do not share φ's dependence on
 //! ν: κ rises faster with ν the wider the punch is against the layer (the box's 9.5 and
-//! 12.68 mm punches' force ratio moves 1.5–1.7 % per 0.01 of ν; BENCHMARKS.md, "ν from
-//! force records"). So each run is fitted on its own at the protocols' ν₀, giving its
+//! 12.68 mm punches' force ratio moves 1.4–1.9 % per 0.01 of ν; BENCHMARKS.md, "Poisson's
+//! ratio from two punch sizes"). So each run is fitted on its own at the protocols' ν₀, giving its
 //! apparent modulus sₖ, and ν is where the runs' moduli agree: sₖ/cₖ(ν) the same for every
 //! run, with cₖ(ν) the least-squares ratio of the run's force law at ν to its law at ν₀ over
 //! the depths it reached — exact for a flat punch, whose law only scales with ν; for a
 //! sphere the law's shape moves a little too, and the ratio is its best single scale.
 //!
 //! The spread is weighed by each modulus's Gauss–Newton uncertainty, and ν's uncertainty is
-//! where that weighted spread has risen by one (Δχ² = 1): a lower bound, as the moduli's are.
+//! where that weighted spread has risen by one (Δχ² = 1; with three runs or more, scaled by
+//! the spread left at the minimum over its degrees of freedom where that exceeds one): a
+//! lower bound, as the moduli's are, and one that holds only as far as the force laws are
+//! the bench's — an error of 1 % in the two punches' relative force moves ν by about 0.006.
 
 use analysis::material_fit::{PressRecord, fit_material};
 
@@ -27,8 +30,10 @@ pub struct PoissonFit {
     pub sd: f64,
     /// The ν the protocols assumed (where the search started).
     pub assumed: f64,
-    /// How many indenters' runs told it.
+    /// How many punch sizes' runs told it.
     pub indenters: usize,
+    /// d ln E∞/dν at ν: how far ν's uncertainty moves the modulus.
+    pub log_modulus_per_nu: f64,
 }
 
 /// The range searched: below 0.3 no gel of a GelSight lies, and at 0.5 the bonded layer's
@@ -125,7 +130,14 @@ pub(super) fn fit_poisson(
         }
     }
     let nu = 0.5 * (lo + hi);
-    if nu <= NU_RANGE.0 + NU_TOL || nu >= NU_RANGE.1 - NU_TOL {
+    if nu >= NU_RANGE.1 - NU_TOL {
+        return Err(format!(
+            "the runs' moduli agree only at ν {} or above, where the layer's force law is \
+             too steep in ν to tell it: a gel that near incompressible",
+            NU_RANGE.1
+        ));
+    }
+    if nu <= NU_RANGE.0 + NU_TOL {
         return Err(format!(
             "the runs' moduli agree nowhere inside ν {}–{} (closest at {nu:.4}): their \
              indenters or contact offsets are not what their protocols say",
@@ -140,11 +152,32 @@ pub(super) fn fit_poisson(
         chi2(nu + h).ok_or_else(no_law)?,
     );
     let curvature = (fp - 2.0 * f0 + fm) / (h * h);
+    // With more runs than the two a ν and a modulus can always reconcile, a spread left at
+    // the minimum beyond the moduli's own uncertainty widens ν's.
+    let dof = moduli.len().saturating_sub(2);
+    let scale = if dof > 0 {
+        (f0 / dof as f64).max(1.0).sqrt()
+    } else {
+        1.0
+    };
     let sd = if curvature > 0.0 {
-        (2.0 / curvature).sqrt()
+        scale * (2.0 / curvature).sqrt()
     } else {
         f64::INFINITY
     };
+    // ln E∞(ν): the moduli's weighted mean of ln(sₖ/cₖ(ν)).
+    let log_modulus = |nu: f64| -> Option<f64> {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (k, (s, sd, _)) in moduli.iter().enumerate() {
+            let w = (s / sd).powi(2);
+            num += w * (s / ratio(k, nu)?).ln();
+            den += w;
+        }
+        Some(num / den)
+    };
+    let log_modulus_per_nu = (log_modulus(nu + h).ok_or_else(no_law)?
+        - log_modulus(nu - h).ok_or_else(no_law)?)
+        / (2.0 * h);
     if sd.is_nan() || sd > MAX_SD {
         return Err(format!(
             "the runs' indenters part too little with ν to tell it (±{sd:.3}); pressing runs \
@@ -156,6 +189,7 @@ pub(super) fn fit_poisson(
         sd,
         assumed: nu0,
         indenters,
+        log_modulus_per_nu,
     })
 }
 
@@ -219,6 +253,8 @@ mod tests {
         .expect("two sizes tell ν");
         assert!((p.nu - 0.47).abs() < 2e-3, "{p:?}");
         assert!(p.sd > 0.0 && p.sd < MAX_SD, "{p:?}");
+        // A lower ν softens κ, so the same forces mean a stiffer gel: E∞ falls as ν rises.
+        assert!(p.log_modulus_per_nu < 0.0, "{p:?}");
         // Two runs of one punch agree at every ν: nothing to tell.
         let same = [record(a1, e, 0.47), record(a1, 1.1 * e, 0.47)];
         let tables = [law(a1, 0.49), law(a1, 0.49)];

@@ -65,7 +65,7 @@ enum Command {
     Report(cmd::report::Cmd),
     /// Calibrate the GelSight as a force sensor on runs with frames and force: SENSOR.yaml.
     Calibrate(cmd::calibrate::Cmd),
-    /// Fit the gel (modulus, relaxation, friction) to a bench's runs: MATERIAL.yaml.
+    /// Fit the gel (modulus, relaxation, friction, ν) to a bench's runs: MATERIAL.yaml.
     FitMaterial(cmd::fit_material::Cmd),
     /// Write a run as MCAP with ROS 2 messages (Foxglove, Rerun, ros2 bag play) or Parquet.
     Export(cmd::export::Cmd),

@@ -9,8 +9,8 @@ use experiments::material::{MaterialFileError, fit};
 /// material file a protocol takes with `material: {from: MATERIAL.yaml}`.
 #[derive(clap::Args)]
 pub(crate) struct Cmd {
-    /// Runs of one gel: stepped pressing runs (modulus, relaxation, contact offset) and
-    /// shear runs that reach slip (friction).
+    /// Runs of one gel: stepped pressing runs (modulus, relaxation, contact offset; ν when
+    /// they press with two flat punch sizes) and shear runs that reach slip (friction).
     #[arg(value_name = "RUN_DIR", required = true)]
     runs: Vec<PathBuf>,
     /// The material file to write.

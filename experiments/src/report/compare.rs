@@ -10,10 +10,11 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{Value, json};
 
-use super::analyse::{self, Block};
+use super::analyse;
 use super::html::{Heading, esc};
 use super::out::{Out, Section, f, num};
 use super::plots::{Chart, Mark, Series};
+use super::results::Block;
 use super::{ReportError, Written, read_run};
 
 /// One number compared across runs: its label and where it sits in a run's summary.

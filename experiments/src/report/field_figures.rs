@@ -13,9 +13,9 @@ use analysis::field::picture::{Quiver, colour_image, quiver_rgb, upscale};
 use analysis::field::{DenseGrid, Interpolator, MarkerField};
 use base64::Engine as _;
 
-use super::analyse::{Block, BlockStep, Kind};
 use super::html::esc;
 use super::out::{Out, werr};
+use super::results::{Block, BlockStep, Kind};
 use super::{ReportError, RunData};
 
 /// Grid step of the dense maps, px (upscaled back to the frame for display).
@@ -134,7 +134,7 @@ fn figure(
         w,
         h,
     );
-    let spacing = super::analyse::spacing_px(field);
+    let spacing = super::field_analysis::spacing_px(field);
     let magnify = (0.8 * spacing / full).clamp(1.0, 50.0);
     let q = Quiver {
         frame_px: (w, h),

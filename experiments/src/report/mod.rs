@@ -11,6 +11,7 @@ pub(crate) mod analyse;
 mod camera_timing;
 mod compare;
 mod contact;
+mod field_analysis;
 mod field_figures;
 mod gelsight_force;
 mod header;
@@ -19,6 +20,7 @@ mod html;
 mod out;
 pub mod plots;
 mod relaxation;
+mod results;
 mod settle_study;
 mod snapshots;
 mod trials;
@@ -27,9 +29,9 @@ mod write;
 use std::path::{Path, PathBuf};
 
 pub(crate) use crate::run_data::{ForceRow, RunData, StepRow, read_run};
-pub use analyse::Report;
 pub use compare::compare;
 pub use headline::headline;
+pub use results::Report;
 pub use rundir::read::RunDirError as ReportError;
 
 /// Where the report went and its headline numbers.

@@ -7,9 +7,9 @@ use std::fmt::Write as _;
 use serde_json::{Value, json};
 
 use super::ReportError;
-use super::analyse::{Kind, Report, StepRelax};
 use super::out::{Out, Section, f, num};
 use super::plots::{Chart, Mark, Series, step_colour};
+use super::results::{Kind, Report, StepRelax};
 
 /// Per-step time constants that scatter by more than this factor across the steps of one
 /// kind (fitted with the same number of terms) are not identified: a well-determined τ

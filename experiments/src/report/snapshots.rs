@@ -87,7 +87,7 @@ fn picture(field: &MarkerField, size: (usize, usize), path: &Path) -> Result<f64
         frame_px: size,
         zoom: 1.0,
         magnify,
-        spacing_px: super::analyse::spacing_px(field),
+        spacing_px: super::field_analysis::spacing_px(field),
     };
     let svg = quiver_svg(field, &q, None).map_err(|e| ReportError::Write {
         path: path.to_path_buf(),

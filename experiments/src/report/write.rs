@@ -7,9 +7,9 @@ use std::path::Path;
 
 use serde_json::{Value, json};
 
-use super::analyse::{Block, Kind, Report};
 use super::out::{Out, Section, f, num, werr};
 use super::plots::{Chart, Mark, Series};
+use super::results::{Block, Kind, Report};
 use super::{ReportError, RunData, Written};
 
 pub(super) fn write(
@@ -445,7 +445,7 @@ fn block_sections(
     }
     // Slip.
     if let Some(s) = &b.slip {
-        let load: Vec<&super::analyse::BlockStep> =
+        let load: Vec<&super::results::BlockStep> =
             b.steps.iter().filter(|s| !s.unloading).collect();
         let mut text = format!(
             "| step | {} ({unit}) | {} | (a) force | (b) central line | (c) contact | state |\n|---|---|---|---|---|---|---|\n",

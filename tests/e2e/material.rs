@@ -78,7 +78,14 @@ fn fit_material_recovers_a_gel_it_was_not_told_and_its_dry_run_reproduces_the_be
         within(t.weight, w, 0.02, "a Prony weight");
         within(t.tau.s(), tau, 0.05, "a time constant");
     }
-    assert_eq!(m.poisson_ratio, 0.49, "ν is held");
+    // ν from the marker field around the punch (the runs record frames), with its ±.
+    assert!(
+        (m.poisson_ratio - 0.49).abs() < 0.001,
+        "ν {} (source 0.49)",
+        m.poisson_ratio
+    );
+    assert!(fitted.uncertainty.poisson_ratio.is_some_and(|sd| sd > 0.0));
+    assert!(stdout.contains("from the marker field"), "{stdout}");
     // Friction: the source's within the bracket the steps give, the sliding one within 5 %.
     let sd = fitted.uncertainty.friction.expect("the shear run slipped");
     assert!(
@@ -235,8 +242,9 @@ fn a_material_from_a_file_that_is_not_one_is_refused_at_its_line() {
     assert!(err.contains("fix:"), "{err}");
 }
 
-/// Poisson's ratio from two flat punch sizes on one gel: the box's 9.5 mm punch pressed in
-/// steps and its 12.68 mm punch's preload, on a gel of ν 0.47 whose run directories claim 0.49
+/// Poisson's ratio from two flat punch sizes on one gel, recorded without a camera: the box's
+/// 9.5 mm punch pressed in steps and its 12.68 mm punch's preload, on a gel of ν 0.47 whose
+/// run directories claim 0.49
 /// (their `protocol.yaml` edited after the runs), so the fit cannot take ν from them. One
 /// punch size alone holds ν at what the runs claim, and says why; so does a punch with a
 /// sphere, whose law changes its shape with ν (counted, it told 0.483 for a gel of 0.49).
@@ -246,11 +254,16 @@ fn two_flat_punch_sizes_tell_poissons_ratio_and_one_does_not() {
     let gel = "sensor: {kind: box, material: {youngs_modulus: 0.3 MPa, poisson_ratio: 0.47, \
                friction: 0.6, prony: [{weight: 0.3, tau: 3 s}]}}";
     // Shorter holds and fewer shear steps than the shipped runs: the fit needs the presses.
+    // Recorded without a camera, so the forces alone tell ν (with frames the field around
+    // the punch would: `a_flat_punchs_marker_field_tells_poissons_ratio_from_one_run`).
     let edit = |name: &str| {
         let text = shipped_text(name)
             .replace("sensor: {kind: box}", gel)
             .replace("settle: {fixed: 180 s}", "settle: {fixed: 40 s}")
-            .replace("to: 1 mm", "to: 0.2 mm");
+            .replace("to: 1 mm", "to: 0.2 mm")
+            .replace(", frames: 1}", "}")
+            .replace(", reference_frames: 1}", "}");
+        assert!(!text.contains("frames"), "{name}");
         assert!(text.contains("poisson_ratio: 0.47"), "{name}");
         text
     };
@@ -267,20 +280,7 @@ fn two_flat_punch_sizes_tell_poissons_ratio_and_one_does_not() {
         )
         .unwrap();
     }
-    let fit = |runs: &[PathBuf], out: &Path| {
-        let o = std::process::Command::new(gelrig())
-            .arg("fit-material")
-            .args(runs)
-            .arg("--out")
-            .arg(out)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        (
-            MaterialFile::read(out).unwrap(),
-            String::from_utf8_lossy(&o.stdout).into_owned(),
-        )
-    };
+    let fit = fit_material;
     let (both, stdout) = fit(&runs[..2], &tmp.path().join("both.yaml"));
     eprintln!("{stdout}");
     let m = &both.material;
@@ -337,4 +337,103 @@ fn two_flat_punch_sizes_tell_poissons_ratio_and_one_does_not() {
         "{:?}",
         curved.provenance
     );
+}
+
+/// Poisson's ratio from the marker field around one flat punch: the field is set by the
+/// depth, not the modulus, so one `box-normal-flat` run with frames tells ν where its force
+/// record cannot — on a gel of ν 0.47 whose run directory claims 0.49. With the 12.68 mm
+/// punch's run beside it the two sizes' forces tell ν too, and the file gives theirs as the
+/// field's check.
+#[test]
+fn a_flat_punchs_marker_field_tells_poissons_ratio_from_one_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gel = "sensor: {kind: box, material: {youngs_modulus: 0.3 MPa, poisson_ratio: 0.47, \
+               friction: 0.6, prony: [{weight: 0.3, tau: 3 s}]}}";
+    let runs: Vec<PathBuf> = ["box-normal-flat", "box-shear-flat"]
+        .iter()
+        .map(|n| {
+            let text = shipped_text(n)
+                .replace("sensor: {kind: box}", gel)
+                .replace("settle: {fixed: 180 s}", "settle: {fixed: 40 s}")
+                .replace("to: 1 mm", "to: 0.2 mm");
+            assert!(text.contains("frames: 1"), "{n}");
+            let dir = dry(&tmp.path().join(n), &text, 6);
+            let p = dir.join("protocol.yaml");
+            let claimed = std::fs::read_to_string(&p)
+                .unwrap()
+                .replace("poisson_ratio: 0.47", "poisson_ratio: 0.49");
+            std::fs::write(&p, claimed).unwrap();
+            dir
+        })
+        .collect();
+    let fit = fit_material;
+    let (one, stdout) = fit(&runs[..1], &tmp.path().join("one.yaml"));
+    eprintln!("{stdout}");
+    let m = &one.material;
+    assert!(
+        (m.poisson_ratio - 0.47).abs() < 5e-4,
+        "ν {} (source 0.47, the run claims 0.49)",
+        m.poisson_ratio
+    );
+    // The markers' noise and the fit's own floor (2e-4) in quadrature.
+    let sd = one.uncertainty.poisson_ratio.expect("ν fitted, with its ±");
+    assert!((2e-4..5e-4).contains(&sd), "ν ± {sd}");
+    // E∞ no longer absorbs the ν the force record cannot see (held at 0.49 it reads
+    // E∞·κ(0.47)/κ(0.49), about 10 % low).
+    within(m.youngs_modulus.mpa(), 0.3, 0.005, "E∞");
+    assert!(stdout.contains("from the marker field"), "{stdout}");
+    assert!(
+        one.provenance.iter().any(|p| p.contains("marker field")),
+        "{:?}",
+        one.provenance
+    );
+    assert_eq!(one.version, 2);
+    // Both punch sizes: still the field's ν, the forces' beside it as a check.
+    let (both, stdout) = fit(&runs, &tmp.path().join("both.yaml"));
+    let nu = both.material.poisson_ratio;
+    assert!((nu - 0.47).abs() < 5e-4, "{stdout}");
+    let check = both
+        .provenance
+        .iter()
+        .find(|p| p.starts_with("poisson_ratio check"))
+        .unwrap_or_else(|| panic!("{:?}", both.provenance));
+    let forces: f64 = check
+        .split("agree at ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{check}"));
+    assert!((forces - 0.47).abs() < 0.005 && forces != nu, "{check}");
+    // Frames that show no marker: ν held, and the field's reason given (one punch size's
+    // forces cannot tell it either).
+    let blind = tmp.path().join("blind");
+    crate::support::copy_run_dir(&runs[0], &blind);
+    let markers = std::fs::read_to_string(blind.join("markers.csv")).unwrap();
+    let header = markers.lines().next().unwrap().to_string() + "\n";
+    std::fs::write(blind.join("markers.csv"), header).unwrap();
+    let (held, stdout) = fit(&[blind], &tmp.path().join("held.yaml"));
+    assert_eq!(held.material.poisson_ratio, 0.49, "{stdout}");
+    assert!(
+        held.provenance
+            .iter()
+            .any(|p| p.contains("the field:") && p.contains("tracked frame")),
+        "{:?}",
+        held.provenance
+    );
+}
+
+/// `gelrig fit-material RUNS --out OUT`, which must succeed: the file and the command's output.
+fn fit_material(runs: &[PathBuf], out: &Path) -> (MaterialFile, String) {
+    let o = std::process::Command::new(gelrig())
+        .arg("fit-material")
+        .args(runs)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (
+        MaterialFile::read(out).unwrap(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+    )
 }

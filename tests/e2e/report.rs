@@ -12,24 +12,8 @@ use crate::support::{col, csv_rows, gelrig, load_text, run_virtual, shared_dry_r
 fn private_copy(name: &str, into: &Path) -> PathBuf {
     let src = shared_dry_run(name);
     let dst = into.join(name);
-    copy_dir(&src, &dst);
+    crate::support::copy_run_dir(&src, &dst);
     dst
-}
-
-fn copy_dir(src: &Path, dst: &Path) {
-    std::fs::create_dir_all(dst).unwrap();
-    for e in std::fs::read_dir(src).unwrap() {
-        let p = e.unwrap().path();
-        let to = dst.join(p.file_name().unwrap());
-        if p.is_dir() {
-            if p.file_name().is_some_and(|n| n == "report") {
-                continue;
-            }
-            copy_dir(&p, &to);
-        } else {
-            std::fs::copy(&p, &to).unwrap();
-        }
-    }
 }
 
 fn report(run: &Path) -> (Output, Value) {

@@ -403,3 +403,20 @@ pub(crate) fn peer_json(script: &str, args: &[&str], out_flag: &str) -> serde_js
     let text = std::fs::read_to_string(&out).expect("the peer's JSON");
     serde_json::from_str(&text).expect("JSON")
 }
+
+/// A copy of run directory `src` at `dst`, without a `report/` a report wrote into it.
+pub(crate) fn copy_run_dir(src: &Path, dst: &Path) {
+    std::fs::create_dir_all(dst).unwrap();
+    for e in std::fs::read_dir(src).unwrap() {
+        let p = e.unwrap().path();
+        let to = dst.join(p.file_name().unwrap());
+        if p.is_dir() {
+            if p.file_name().is_some_and(|n| n == "report") {
+                continue;
+            }
+            copy_run_dir(&p, &to);
+        } else {
+            std::fs::copy(&p, &to).unwrap();
+        }
+    }
+}

@@ -69,7 +69,8 @@ pub struct Uncertainty {
     /// Of the static friction coefficient, where it was fitted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction: Option<f64>,
-    /// Of Poisson's ratio, where pressing runs of two indenters or more told it (version 2).
+    /// Of Poisson's ratio, where the runs told it: the marker field around a flat punch, or
+    /// two flat punch sizes' forces (version 2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub poisson_ratio: Option<f64>,
 }
@@ -213,7 +214,10 @@ mod tests {
         );
         let text = std::fs::read_to_string(&path).expect("text");
         for (edit, says) in [
-            (text.replace("version: 1", "version: 9"), "newer gelrig"),
+            (
+                text.replace(&format!("version: {}", file.version), "version: 9"),
+                "newer gelrig",
+            ),
             (
                 text.replacen("youngs_modulus: 0.", "youngs_modulus: -0.", 1),
                 "must be positive",

@@ -5,9 +5,10 @@
 //! gross slip give the static friction coefficient (the largest tangential-to-normal ratio
 //! up to the first slipping step, [`analysis::slip`]) and the sliding one (the mean ratio of
 //! the steps after). Poisson's ratio: the force of one indenter depends on E and ν together
-//! (through E* and the layer's κ(ν)), so one indenter's record cannot tell them apart and ν
-//! is held at the protocols' value; pressing runs of two indenters or more can, and ν is
-//! fitted where their moduli agree ([`super::poisson`]).
+//! (through E* and the layer's κ(ν)), so one indenter's force record cannot tell them apart;
+//! the marker field around a flat circular punch can, being set by the depth alone
+//! ([`super::field_nu`]), and so can two flat punch sizes' forces, where their moduli agree
+//! ([`super::poisson`]). With neither, ν is held at the protocols' value.
 
 use std::path::{Path, PathBuf};
 
@@ -15,6 +16,7 @@ use analysis::material_fit::{MaterialFit, PressRecord, fit_material};
 use mechanics::response::ModelSpec;
 use rig::units::{Duration, Pressure};
 
+use super::field_nu::FieldRecord;
 use super::file::{FORMAT, FittedRun, MaterialFile, TermUncertainty, Uncertainty, VERSION};
 use super::law::{ForceLaw, interp};
 use crate::protocol::schema::{MaterialSpec, PronySpec};
@@ -56,6 +58,8 @@ struct Run {
     law: ForceLaw,
     /// The indenter, as its protocol gives it: runs of different indenters tell ν.
     indenter: String,
+    /// The camera's view on the gel, mm (width, height): the image scale of its frames.
+    view_mm: (f64, f64),
 }
 
 /// Fits a material to `runs` (run directories made by `gelrig run`).
@@ -156,23 +160,125 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
             flat.iter().map(|&(j, _)| tables0[j].clone()).collect();
         super::poisson::fit_poisson(&recs, &tabs, nu, sizes, &|k, nu| laws[flat[k].0].table(nu))
     });
+    // The flat circular punches' marker fields tell ν from one run: first the record at ν₀
+    // for each run's contact offset (a flat punch's hardly moves with ν), then the fields
+    // at the depths past it. Runs without frames give none; a run whose frames give no
+    // field says why.
+    let fit0 = joint(&tables0);
+    let mut field_notes: Vec<String> = Vec::new();
+    let mut field_recs: Vec<FieldRecord> = Vec::new();
+    for &(j, _) in &flat {
+        let run = &read[pressing[j].0];
+        if run.data.frames.len() < 2 {
+            continue;
+        }
+        let offset = fit0
+            .as_ref()
+            .ok()
+            .and_then(|f| f.offsets_mm.get(j))
+            .map_or(0.0, |o| o.value);
+        let rec = crate::run_data::read_run(&run.dir)
+            .map_err(|e| format!("its frames do not track ({e})"))
+            .and_then(|data| {
+                super::field_nu::field_record(
+                    &data,
+                    &laws[j].spec,
+                    run.view_mm,
+                    PRESSING_AXES[0],
+                    offset,
+                )
+            });
+        match rec {
+            Ok(r) => field_recs.push(r),
+            Err(why) => field_notes.push(format!("{}: {why}", run.dir.display())),
+        }
+    }
+    let field = match (field_recs.is_empty(), field_notes.is_empty()) {
+        (false, _) => Some(super::field_nu::fit_nu(&field_recs)),
+        (true, false) => Some(Err(field_notes.join("; "))),
+        (true, true) => None,
+    };
+    let pressing_model = if laws.iter().any(|l| l.spec.pressing_friction) {
+        "the punch face stuck (the rig's `pressing_friction`)"
+    } else {
+        "a frictionless punch face (the rig names no `pressing_friction`)"
+    };
+    let chosen: Option<FittedNu> = match (&field, &poisson) {
+        (Some(Ok(f)), _) => Some(FittedNu {
+            nu: f.nu,
+            sd: f.sd,
+            per_nu: None,
+            how: format!(
+                "from the marker field around {} flat punch run(s) ({} marker readings from \
+                 {} to {} punch radii, rms misfit {:.2} µm; the field independent of the \
+                 modulus, of the contact model with {pressing_model}; the ± the markers' noise \
+                 and {} of the fit's own in quadrature{})",
+                f.runs,
+                f.points,
+                f.annulus.0,
+                f.annulus.1,
+                f.rms_um,
+                super::field_nu::SD_FLOOR,
+                if f.near_sides {
+                    "; the markers used reach within two layer thicknesses of the pad's \
+                     sides, where a real pad's field departs from the infinite layer's"
+                } else {
+                    ""
+                }
+            ),
+        }),
+        (_, Some(Ok(p))) => Some(FittedNu {
+            nu: p.nu,
+            sd: p.sd,
+            per_nu: Some(p.log_modulus_per_nu),
+            how: format!(
+                "where the apparent moduli of {} flat punches' pressing runs agree (each run \
+                 fitted on its own)",
+                p.indenters
+            ),
+        }),
+        _ => None,
+    };
+    // The method not taken, where it told ν or was tried: the fitted ν's check.
+    let mut checks = Vec::new();
+    if let (Some(_), Some(Ok(_)), Some(Ok(p))) = (&chosen, &field, &poisson) {
+        checks.push(format!(
+            "poisson_ratio check: the two punch sizes' forces agree at {:.4} ± {:.4}",
+            p.nu, p.sd
+        ));
+    }
+    if let (Some(_), Some(Err(why))) = (&chosen, &field) {
+        checks.push(format!(
+            "poisson_ratio check: the marker field did not tell ν: {why}"
+        ));
+    } else if let (Some(Ok(_)), false) = (&field, field_notes.is_empty()) {
+        checks.push(format!(
+            "poisson_ratio check: runs whose frames gave no field: {}",
+            field_notes.join("; ")
+        ));
+    }
     let mut refit_failed = None;
-    let (fit, nu_fit) = match &poisson {
-        Some(Ok(p)) => {
+    let (fit, nu_fit) = match chosen {
+        Some(c) => {
             // The whole record again at the fitted ν; should it not fit there, ν stays held.
-            match tables_at(p.nu).map(|t| joint(&t)) {
-                Some(Ok(fit)) => (fit, Some(p)),
+            match tables_at(c.nu).map(|t| joint(&t)) {
+                Some(Ok(fit)) => {
+                    let per_nu = c
+                        .per_nu
+                        .unwrap_or_else(|| log_modulus_per_nu(&laws, &records, &fit, c.nu));
+                    (fit, Some((c, per_nu)))
+                }
                 _ => {
                     refit_failed = Some(format!(
-                        "the runs' moduli agreed at ν {:.4}, but the whole record does not fit \
-                         there",
-                        p.nu
+                        "ν {:.4} was told {}, but the whole record does not fit there",
+                        c.nu, c.how
                     ));
-                    (joint(&tables0)?, None)
+                    checks.clear();
+                    (fit0?, None)
                 }
             }
         }
-        _ => (joint(&tables0)?, None),
+        None => (fit0?, None),
     };
     let friction = friction_of(&read);
     let kinds = {
@@ -184,16 +290,23 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
         all.dedup();
         all.len()
     };
+    let field_why = match &field {
+        Some(Err(why)) => format!("; the field: {why}"),
+        _ => String::new(),
+    };
     let held_why = match &poisson {
         _ if refit_failed.is_some() => refit_failed.unwrap_or_default(),
-        Some(Err(why)) => why.clone(),
-        _ if kinds >= 2 => "only flat circular punches of two sizes (a/h 15 % apart or more) \
-                            tell ν: a curved indenter's force law changes its shape with ν and \
-                            its contact offset trades with the modulus"
-            .to_string(),
-        _ => "a force record of one indenter cannot tell E from ν; pressing runs of two flat \
-              punch sizes can"
-            .to_string(),
+        Some(Err(why)) => format!("{why}{field_why}"),
+        _ if kinds >= 2 => format!(
+            "only flat circular punches tell ν: by their field around them where frames \
+             were recorded, or by the forces of two sizes (a/h 15 % apart or more); a curved \
+             indenter's force law changes its shape with ν and its contact offset trades with \
+             the modulus{field_why}"
+        ),
+        _ => format!(
+            "a force record of one indenter cannot tell E from ν; the marker field around a \
+             flat circular punch can, and so can pressing runs of two flat punch sizes{field_why}"
+        ),
     };
     Ok(file(
         &read,
@@ -201,9 +314,11 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
         &fit,
         friction,
         Poisson {
-            nu: nu_fit.map_or(nu, |p| p.nu),
-            fitted: nu_fit.cloned(),
+            nu: nu_fit.as_ref().map_or(nu, |p| p.0.nu),
+            assumed: nu,
+            fitted: nu_fit,
             held_why,
+            checks,
         },
     ))
 }
@@ -212,11 +327,62 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
 /// force ratio moves too little with ν for the model's own error to stay out of it.
 const SIZES_APART: f64 = 1.15;
 
-/// Poisson's ratio: fitted, or held at the protocols' value and why.
+/// Poisson's ratio: fitted (with d ln E∞/dν at it), or held at the protocols' value and
+/// why.
 struct Poisson {
     nu: f64,
-    fitted: Option<super::poisson::PoissonFit>,
+    assumed: f64,
+    fitted: Option<(FittedNu, f64)>,
     held_why: String,
+    /// The other method's ν where both told it, or why the field did not.
+    checks: Vec<String>,
+}
+
+/// ν as fitted, and how.
+struct FittedNu {
+    nu: f64,
+    sd: f64,
+    /// d ln E∞/dν, where the method found it (the forces' moduli); else from the laws.
+    per_nu: Option<f64>,
+    how: String,
+}
+
+/// d ln E∞/dν at `nu`: how far ν's uncertainty moves the modulus. E∞ scales as the inverse of
+/// the force laws' scale with ν (the least-squares ratio of each law at ν ± h to its law at
+/// ν over the depths its run reached), weighted by the runs' samples.
+fn log_modulus_per_nu(
+    laws: &[&ForceLaw],
+    records: &[PressRecord],
+    fit: &MaterialFit,
+    nu: f64,
+) -> f64 {
+    let h = 1e-3_f64.min(0.5 * (0.4995 - nu)).max(1e-5);
+    let (mut num, mut den) = (0.0, 0.0);
+    for (k, (law, rec)) in laws.iter().zip(records).enumerate() {
+        let d0 = fit.offsets_mm.get(k).map_or(0.0, |o| o.value);
+        let deepest = rec.depth_knots.iter().map(|k| k.1).fold(0.0, f64::max) - d0;
+        let (Some(t0), Some(tm), Some(tp)) = (law.table(nu), law.table(nu - h), law.table(nu + h))
+        else {
+            continue;
+        };
+        let scale = |t: &(Vec<f64>, Vec<f64>)| {
+            let (mut a, mut b) = (0.0, 0.0);
+            for i in 1..=50 {
+                let d = deepest * i as f64 / 50.0;
+                let f0 = interp(&t0, d);
+                a += interp(t, d) * f0;
+                b += f0 * f0;
+            }
+            a / b
+        };
+        let slope = -(scale(&tp).ln() - scale(&tm).ln()) / (2.0 * h);
+        if deepest > 0.0 && slope.is_finite() {
+            let w = rec.t_s.len() as f64;
+            num += w * slope;
+            den += w;
+        }
+    }
+    if den > 0.0 { num / den } else { 0.0 }
 }
 
 fn read_one(dir: &Path) -> Result<Run, FitError> {
@@ -293,6 +459,7 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
         approach_speed,
         law,
         indenter,
+        view_mm: (spec.view_width_mm, spec.view_height_mm),
     })
 }
 
@@ -456,11 +623,10 @@ fn file(
             fit.lag_s.sd
         ),
         match &poisson.fitted {
-            Some(p) => format!(
-                "poisson_ratio: {:.4} ± {:.4}, where the apparent moduli of {} flat punches' \
-                 pressing runs agree (the protocols assumed {}; each run fitted on its own, \
-                 then the whole record again at the fitted ν)",
-                p.nu, p.sd, p.indenters, p.assumed
+            Some((p, _)) => format!(
+                "poisson_ratio: {:.4} ± {:.4}, {} (the protocols assumed {}; the whole record \
+                 fitted again at the fitted ν)",
+                p.nu, p.sd, p.how, poisson.assumed
             ),
             None => format!(
                 "poisson_ratio: held at the protocols' {nu} ({})",
@@ -468,6 +634,7 @@ fn file(
             ),
         },
     ];
+    provenance.extend(poisson.checks);
     provenance.push(match &friction {
         Some(f) => format!(
             "friction: bracketed by the shear steps of {} — above the last step that held, \
@@ -514,11 +681,14 @@ fn file(
         material,
         uncertainty: Uncertainty {
             // A fitted ν's uncertainty reaches E∞ through the force law's dependence on it.
-            youngs_modulus_mpa: poisson.fitted.as_ref().map_or(fit.modulus_ratio.sd, |p| {
-                fit.modulus_ratio
-                    .sd
-                    .hypot(fit.modulus_ratio.value * p.log_modulus_per_nu * p.sd)
-            }),
+            youngs_modulus_mpa: poisson.fitted.as_ref().map_or(
+                fit.modulus_ratio.sd,
+                |(p, per_nu)| {
+                    fit.modulus_ratio
+                        .sd
+                        .hypot(fit.modulus_ratio.value * per_nu * p.sd)
+                },
+            ),
             prony: fit
                 .terms
                 .iter()
@@ -528,7 +698,7 @@ fn file(
                 })
                 .collect(),
             friction: friction.as_ref().map(|f| f.static_sd),
-            poisson_ratio: poisson.fitted.as_ref().map(|p| p.sd),
+            poisson_ratio: poisson.fitted.as_ref().map(|(p, _)| p.sd),
         },
         provenance,
         fitted_on,

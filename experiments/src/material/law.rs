@@ -1,6 +1,6 @@
 //! A pressing run's elastic force law at unit modulus: its indenter and layer as the
 //! mechanics models them, built at any Poisson's ratio (`fit-material` fits E∞ against it,
-//! and ν where two flat punch sizes tell it).
+//! and ν where two flat punch sizes' forces tell it).
 
 use mechanics::response::{ContactModel, ModelSpec};
 

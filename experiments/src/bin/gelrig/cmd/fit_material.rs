@@ -5,12 +5,15 @@ use std::process::ExitCode;
 
 use experiments::material::{MaterialFileError, fit};
 
-/// Fit the gel's relaxed modulus, its relaxation and its friction to recorded runs; write a
-/// material file a protocol takes with `material: {from: MATERIAL.yaml}`.
+/// Fit the gel's relaxed modulus, its relaxation, its Poisson's ratio where the runs tell it
+/// and its friction to recorded runs; write a material file a protocol takes with
+/// `material: {from: MATERIAL.yaml}`.
 #[derive(clap::Args)]
 pub(crate) struct Cmd {
-    /// Runs of one gel: stepped pressing runs (modulus, relaxation, contact offset; ν when
-    /// they press with two flat punch sizes) and shear runs that reach slip (friction).
+    /// Runs of one gel: stepped pressing runs (modulus, relaxation, contact offset; ν from
+    /// the marker field around a flat circular punch where frames were recorded — tracked
+    /// into the run's `markers.csv` first if it has none — or from the forces of two flat
+    /// punch sizes) and shear runs that reach slip (friction).
     #[arg(value_name = "RUN_DIR", required = true)]
     runs: Vec<PathBuf>,
     /// The material file to write.
@@ -34,10 +37,19 @@ impl Cmd {
         let u = &file.uncertainty;
         match u.poisson_ratio {
             Some(sd) => out!(
-                "E∞ = {:.4} ± {:.4} MPa, ν = {:.4} ± {sd:.4} (where the indenters' moduli agree)",
+                "E∞ = {:.4} ± {:.4} MPa, ν = {:.4} ± {sd:.4} ({})",
                 m.youngs_modulus.mpa(),
                 u.youngs_modulus_mpa,
-                m.poisson_ratio
+                m.poisson_ratio,
+                if file
+                    .provenance
+                    .iter()
+                    .any(|p| p.starts_with("poisson_ratio:") && p.contains("marker field"))
+                {
+                    "from the marker field around the flat punch"
+                } else {
+                    "where the indenters' moduli agree"
+                }
             ),
             None => out!(
                 "E∞ = {:.4} ± {:.4} MPa (ν held at {})",

@@ -18,7 +18,7 @@ use rig::units::{Duration, Pressure};
 
 use super::field_nu::FieldRecord;
 use super::file::{FORMAT, FittedRun, MaterialFile, TermUncertainty, Uncertainty, VERSION};
-use super::law::{ForceLaw, interp};
+use super::law::{ForceLaw, interp, law_scale};
 use crate::protocol::schema::{MaterialSpec, PronySpec};
 use crate::run_data::{RunData, StepRow, read_run_tables};
 
@@ -365,18 +365,12 @@ fn log_modulus_per_nu(
         else {
             continue;
         };
-        let scale = |t: &(Vec<f64>, Vec<f64>)| {
-            let (mut a, mut b) = (0.0, 0.0);
-            for i in 1..=50 {
-                let d = deepest * i as f64 / 50.0;
-                let f0 = interp(&t0, d);
-                a += interp(t, d) * f0;
-                b += f0 * f0;
-            }
-            a / b
+        let (Some(sp), Some(sm)) = (law_scale(&t0, &tp, deepest), law_scale(&t0, &tm, deepest))
+        else {
+            continue;
         };
-        let slope = -(scale(&tp).ln() - scale(&tm).ln()) / (2.0 * h);
-        if deepest > 0.0 && slope.is_finite() {
+        let slope = -(sp.ln() - sm.ln()) / (2.0 * h);
+        if slope.is_finite() {
             let w = rec.t_s.len() as f64;
             num += w * slope;
             den += w;

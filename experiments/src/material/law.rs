@@ -53,6 +53,24 @@ impl ForceLaw {
     }
 }
 
+/// The least-squares scale from force table `base` to table `other` over (0, `deepest_mm`]
+/// (50 depths): how a run's force law moves with ν, one number per run. `None` where the
+/// base law carries no force there.
+pub(super) fn law_scale(
+    base: &(Vec<f64>, Vec<f64>),
+    other: &(Vec<f64>, Vec<f64>),
+    deepest_mm: f64,
+) -> Option<f64> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in 1..=50 {
+        let d = deepest_mm * i as f64 / 50.0;
+        let f0 = interp(base, d);
+        num += interp(other, d) * f0;
+        den += f0 * f0;
+    }
+    (den > 0.0 && num > 0.0).then(|| num / den)
+}
+
 /// Linear interpolation in a depth table, zero out of contact, extended linearly past its
 /// end.
 pub(super) fn interp((d, f): &(Vec<f64>, Vec<f64>), x: f64) -> f64 {

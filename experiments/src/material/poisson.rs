@@ -19,7 +19,7 @@
 
 use analysis::material_fit::{PressRecord, fit_material};
 
-use super::law::interp;
+use super::law::{interp, law_scale};
 
 /// Poisson's ratio where the runs' moduli agree.
 #[derive(Debug, Clone, PartialEq)]
@@ -81,16 +81,7 @@ pub(super) fn fit_poisson(
     }
     // cₖ(ν): the least-squares scale from the law at ν₀ to the law at ν over (0, deepest].
     let ratio = |k: usize, nu: f64| -> Option<f64> {
-        let t = table_at(k, nu)?;
-        let deepest = moduli[k].2;
-        let (mut num, mut den) = (0.0, 0.0);
-        for i in 1..=50 {
-            let d = deepest * i as f64 / 50.0;
-            let f0 = interp(&tables0[k], d);
-            num += interp(&t, d) * f0;
-            den += f0 * f0;
-        }
-        (den > 0.0 && num > 0.0).then(|| num / den)
+        law_scale(&tables0[k], &table_at(k, nu)?, moduli[k].2)
     };
     // The weighted spread of ln(sₖ/cₖ(ν)) about its weighted mean.
     let chi2 = |nu: f64| -> Option<f64> {

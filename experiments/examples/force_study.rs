@@ -214,6 +214,7 @@ fn grasp(root: &Path, tmp: &Path) {
         for (method_name, method, symmetric) in [
             ("moments", Method::Moments, false),
             ("scale", Method::Scale, false),
+            ("traction", Method::Traction, false),
             ("moments, symmetric", Method::Moments, true),
             ("scale, symmetric", Method::Scale, true),
         ] {

@@ -5,6 +5,7 @@
 #![allow(clippy::unwrap_used)]
 
 mod bonded_punch;
+mod bonded_sphere;
 mod dry_run;
 mod export;
 mod faults;

@@ -100,6 +100,10 @@ impl ContactModel {
             if let Some(p) = self.field_pressure.get(&key) {
                 out.iter_mut().zip(p).for_each(|(o, v)| *o += w * v);
             }
+            if self.curved_friction() {
+                let extra = self.friction_pressure_on(op, key, d);
+                out.iter_mut().zip(&extra).for_each(|(o, v)| *o += w * v);
+            }
         }
         out
     }

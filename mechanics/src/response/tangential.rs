@@ -7,20 +7,40 @@ use std::f64::consts::PI;
 use super::{ContactModel, Kind, TangentialTable, tol};
 use crate::friction::Backbone;
 use crate::operator::Compliance;
-use crate::solve::{Tangential, tangential};
+use crate::solve::{Tangential, TangentialSolution, tangential};
 
 impl ContactModel {
     /// Solves the tangential backbone at `depth_mm` (unit depth for flat punches).
-    pub(super) fn tangential_table(&self, depth_mm: f64, kind: Kind) -> TangentialTable {
+    pub(super) fn tangential_table(&mut self, depth_mm: f64, kind: Kind) -> TangentialTable {
         let c = &self.spec.contact;
         let mu = c.material.friction;
         let op = self.op_for(depth_mm);
         let grid = op.grid();
-        let p = self.pressure_on(&op, depth_mm);
         // Pressing: the punch does not move sideways, so contact points stick where they
         // touched while the coupling pushes the surface outward (on a pressure found with
-        // friction, this is the coupled solution's own traction).
-        let (press, (sx, sy)) = super::flat::held_by_friction(&op, &p, mu);
+        // friction, this is the coupled solution's own traction). A curved indenter pressed
+        // with friction starts from its loading path's state instead.
+        let (p, press, (sx, sy)) = if self.curved_friction() {
+            let h = c.layer.thickness_mm;
+            let s = self.pressed(super::quantise(depth_mm, h), depth_mm);
+            let (mut sx, mut sy) = (vec![0.0; grid.len()], vec![0.0; grid.len()]);
+            op.tangential_from_normal(&s.p, &mut sx, &mut sy);
+            let a = grid.area();
+            let press = TangentialSolution {
+                fx_n: s.qx.iter().sum::<f64>() * a,
+                fy_n: s.qy.iter().sum::<f64>() * a,
+                stick: s.p.iter().map(|v| *v > 0.0).collect(),
+                qx: s.qx,
+                qy: s.qy,
+                outer: 0,
+                converged: true,
+            };
+            (s.p, press, (sx, sy))
+        } else {
+            let p = self.pressure_on(&op, depth_mm);
+            let (press, s) = super::flat::held_by_friction(&op, &p, mu);
+            (p, press, s)
+        };
         let (mut u0x, mut u0y) = (vec![0.0; grid.len()], vec![0.0; grid.len()]);
         op.tangential(&press.qx, &press.qy, &mut u0x, &mut u0y);
         for i in 0..grid.len() {

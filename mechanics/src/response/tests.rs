@@ -209,3 +209,78 @@ fn a_non_circular_punchs_force_is_extrapolated_across_grids_to_within_a_percent(
     assert!(grid < 0.97 * at_64, "grid {grid} vs {at_64}");
     assert!((at_32 / at_64 - 1.0).abs() < 0.01, "{at_32} vs {at_64}");
 }
+
+#[test]
+fn a_curved_indenter_pressed_with_friction_follows_its_loading_path() {
+    // The can across the portable pad (h = 2 mm): its strip is wide against the layer, so
+    // the coupling friction holds is strong (+36 % at 0.4 mm, BENCHMARKS.md).
+    let build = |mu: f64, friction: bool| {
+        let mut c = contact(
+            Indenter::Cylinder {
+                diameter_mm: 57.2,
+                length_mm: 100.0,
+            },
+            2.0,
+        );
+        c.layer.width_mm = 22.6;
+        c.layer.length_mm = 23.4;
+        c.material.youngs_modulus_mpa = 0.15;
+        c.material.friction = mu;
+        ContactModel::build(ModelSpec {
+            contact: c,
+            max_depth_mm: 0.4,
+            shear: true,
+            twist: false,
+            field_view_mm: Some((18.0, 18.0)),
+            pressing_friction: friction,
+            quality: Quality::default(),
+        })
+        .expect("builds")
+    };
+    let d = 0.3;
+    let mut free = build(0.6, false);
+    let mut held = build(0.6, true);
+    // μ = 0 is the frictionless table exactly; μ = 0.6 presses harder, and more so deeper
+    // (the strip widens against h).
+    let none = build(0.0, true);
+    assert_eq!(none.normal_force_n(d), free.normal_force_n(d));
+    let ratio = |m: &ContactModel, d: f64| m.normal_force_n(d) / free.normal_force_n(d);
+    let (shallow, deep) = (ratio(&held, 0.05), ratio(&held, d));
+    // The path's example on a finer grid: 1.3617 at 0.4 mm, 1.177 at 0.1 mm.
+    assert!(deep > 1.3 && deep < 1.37, "{deep}");
+    assert!(shallow > 1.0 && shallow < deep, "{shallow} vs {deep}");
+    // The slip limit starts from the pressed state's own pressure: against the model's Fz
+    // it stands where the frictionless one does (both are the table grid's pressure, 6 %
+    // under the adapted grids' force on this strip).
+    let slip_ratio = |m: &mut ContactModel| {
+        m.shear_table(d).expect("shear").backbone.limit() / (0.6 * m.normal_force_n(d))
+    };
+    let (r0, r1) = (slip_ratio(&mut free), slip_ratio(&mut held));
+    assert!((r1 / r0 - 1.0).abs() < 0.01, "{r1} vs {r0}");
+    // The field carries the path's pressure and tractions, and its surface under the
+    // strip follows the can (u_z = δ at the centre, within the table grid's 1.2 mm cells).
+    // The one-way (Goodman) field pulls every caught point back to where it started, and
+    // that traction's coupling lifts the surface the frictionless pressure had pushed
+    // down: 38 % short at the centre here. Beside the strip, the caught surface's outward
+    // flow is kept, not pulled back.
+    let pressed = State {
+        depth_mm: d,
+        shear_n: 0.0,
+        torque_nmm: 0.0,
+    };
+    let (f0, f1) = (
+        free.field(pressed).expect("field"),
+        held.field(pressed).expect("field"),
+    );
+    let g = f1.grid;
+    let centre = |f: &Field| g.sample(&f.uz, 0.0, 0.0);
+    assert!((centre(&f1) / d - 1.0).abs() < 0.03, "{}", centre(&f1));
+    assert!(centre(&f0) < 0.8 * d, "{}", centre(&f0));
+    let beside = |f: &Field| g.sample(&f.uy, 0.0, 4.0);
+    assert!(
+        beside(&f1) > 2.0 * beside(&f0) && beside(&f0) > 0.0,
+        "{} vs {}",
+        beside(&f1),
+        beside(&f0)
+    );
+}

@@ -23,7 +23,11 @@
 //! last; the sweep stops when the total force changes by less than the tolerance.
 //!
 //! A flat punch pressed from first touch loads proportionally — pressure, tractions and
-//! friction limits all scale with depth — so one solve at unit depth gives every depth.
+//! friction limits all scale with depth — so one solve at unit depth gives every depth. A
+//! curved indenter's contact grows as it presses, and what each point holds depends on
+//! where it was when it first touched: [`curved`] follows that path in depth increments.
+
+pub mod curved;
 
 use crate::operator::Compliance;
 use crate::solve::{Tangential, TangentialSolution, Tolerance, normal_known_area, tangential};

@@ -1,0 +1,271 @@
+//! The pressed state's tractions (what holds the surface the layer's coupling pushes
+//! outward), and a curved indenter pressed with friction (`ModelSpec::pressing_friction`):
+//! its loading path ([`crate::pressing::curved`]) sets the normal table's force, and the pressed state
+//! (pressure and the tractions that hold the caught surface) from which fields and
+//! tangential tables start.
+//!
+//! Frictionless, a curved indenter's state is a function of its depth; with friction it is a
+//! function of the path, and the model follows the one path a pressing run takes: monotonic
+//! loading from first touch. Unloading (a receding contact releasing its stuck points) is
+//! not modelled: a retracting indenter is given the loading path's state at its depth.
+
+use super::{ContactModel, Normal, quantise, tol};
+use crate::Indenter;
+use crate::operator::{Compliance, Grid, LayerOperator};
+use crate::pressing::curved::{CurvedPath, path_depths};
+use crate::solve::{Tangential, normal_unknown_area, tangential};
+
+/// Increments of a loading path, spaced evenly in √δ (each catches about the same width of
+/// surface). A pressed state is followed in this many: its force is 0.2–0.4 % high at the
+/// shipped sphere's and can's deepest depths (the catch lags one increment); the normal
+/// table's force is extrapolated across half as many and this many (BENCHMARKS.md, "Curved
+/// indenters pressed with friction").
+pub(super) const PATH_STEPS: usize = 16;
+
+/// The pressed state of a curved indenter at one depth, on the grid of its tables.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Pressed {
+    /// Pressure with friction, MPa.
+    pub p: Vec<f64>,
+    /// The frictionless pressure at the same depth on the same grid, MPa (the field adds
+    /// the difference to its own finer frictionless pressure).
+    pub p_free: Vec<f64>,
+    /// Tractions that hold the caught surface (x, y), MPa.
+    pub qx: Vec<f64>,
+    pub qy: Vec<f64>,
+    pub grid: Grid,
+}
+
+impl ContactModel {
+    /// Whether a curved indenter is pressed with friction.
+    pub(super) fn curved_friction(&self) -> bool {
+        self.spec.pressing_friction
+            && self.spec.contact.material.friction > 0.0
+            && matches!(self.normal, Normal::Curved { .. })
+    }
+
+    /// The indenter's surface on `op`'s grid.
+    fn profile_on(&self, op: &LayerOperator) -> Vec<f64> {
+        let g = op.grid();
+        let c = &self.spec.contact;
+        (0..g.len())
+            .map(|i| {
+                let (x, y) = g.xy(i);
+                super::shapes::profile(&c.indenter, c.layer.width_mm, x, y)
+            })
+            .collect()
+    }
+
+    /// The grid of the force ratio's path to `depth_mm`: `cells_curved` cells across 2.4
+    /// Hertz half-widths √(Rδ) — the contact's narrow width, which for the can's strip is
+    /// a fifth of the √(A/π) the tables' grids are sized by (6 cells across the strip at
+    /// 0.3 mm there; 30 here) — over the tables' span.
+    fn ratio_operator(&self, depth_mm: f64) -> LayerOperator {
+        let c = &self.spec.contact;
+        let table = self.op_for(depth_mm);
+        let radius = match c.indenter {
+            Indenter::Sphere { diameter_mm } | Indenter::Cylinder { diameter_mm, .. } => {
+                diameter_mm / 2.0
+            }
+            _ => c.indenter.footprint_mm() / 2.0,
+        };
+        let dx = (2.4 * (radius * depth_mm).sqrt() / self.spec.quality.cells_curved as f64)
+            .min(table.grid().dx);
+        let span = table.grid().dx * table.grid().n as f64;
+        LayerOperator::new(
+            Grid {
+                n: crate::operator::fast_size((span / dx).ceil() as usize),
+                dx,
+            },
+            c.layer.thickness_mm,
+            c.material.shear_modulus_mpa(),
+            c.material.poisson_ratio,
+        )
+    }
+
+    /// Scales the frictionless normal table by the force friction adds along the loading
+    /// path: one path to the table's deepest depth on a grid resolving that contact, the
+    /// ratio interpolated in √δ between its increments (the ratio converges with the grid
+    /// where the force alone does not: the same reasoning as the flat punch's exact κ times
+    /// its grid's ratio).
+    pub(super) fn press_curved_table_with_friction(&mut self) {
+        if !self.curved_friction() {
+            return;
+        }
+        let Normal::Curved {
+            depths_mm,
+            forces_n,
+            ..
+        } = &self.normal
+        else {
+            return;
+        };
+        let Some(&deepest) = depths_mm.last() else {
+            return;
+        };
+        let op = self.ratio_operator(deepest);
+        let prof = self.profile_on(&op);
+        let mu = self.spec.contact.material.friction;
+        // The path's force ratio at its increments' depths.
+        let ratios = |steps: usize| -> Vec<f64> {
+            let mut path = CurvedPath::new(&op, &prof, mu, tol());
+            path_depths(deepest, steps)
+                .into_iter()
+                .map(|d| {
+                    let held = path.press_to(d).map_or(f64::NAN, |s| s.force_n);
+                    let free = normal_unknown_area(&op, &prof, d, None, tol()).force_n;
+                    held / free
+                })
+                .collect()
+        };
+        // The catch lags one increment, so the force errs at first order in the increment:
+        // Richardson across PATH_STEPS / 2 and PATH_STEPS increments, at the coarse path's
+        // depths (every other one of the fine path's). Within 0.05 % of an independent
+        // finite-element solution on the box sphere, where 16 increments alone were 0.4 %
+        // high (BENCHMARKS.md, "Curved indenters pressed with friction").
+        let (coarse, fine) = (ratios(PATH_STEPS / 2), ratios(PATH_STEPS));
+        let mut points = vec![(0.0, 1.0)];
+        for (k, d) in path_depths(deepest, PATH_STEPS / 2).into_iter().enumerate() {
+            let r = 2.0 * fine.get(2 * k + 1).copied().unwrap_or(f64::NAN) - coarse[k];
+            if r.is_finite() && r > 0.0 {
+                points.push((d.sqrt(), r));
+            }
+        }
+        let ratio = |d: f64| -> f64 {
+            let x = d.sqrt();
+            let i = points.partition_point(|(r, _)| *r <= x);
+            match (points.get(i.wrapping_sub(1)), points.get(i)) {
+                (Some(a), Some(b)) => a.1 + (b.1 - a.1) * (x - a.0) / (b.0 - a.0),
+                (Some(a), None) => a.1,
+                _ => 1.0,
+            }
+        };
+        let scaled: Vec<f64> = depths_mm
+            .iter()
+            .zip(forces_n)
+            .map(|(d, f)| f * ratio(*d))
+            .collect();
+        if let Normal::Curved { forces_n, .. } = &mut self.normal {
+            *forces_n = scaled;
+        }
+    }
+
+    /// The pressed state at `depth_mm` on the grid of its tangential tables: its loading
+    /// path followed there in [`PATH_STEPS`] increments (cached by the depth's bucket).
+    pub(super) fn pressed(&mut self, key: u64, depth_mm: f64) -> Pressed {
+        if let Some(p) = self.pressed.get(&key) {
+            return p.clone();
+        }
+        let op = self.op_for(depth_mm);
+        let prof = self.profile_on(&op);
+        let mu = self.spec.contact.material.friction;
+        let mut path = CurvedPath::new(&op, &prof, mu, tol());
+        let len = op.grid().len();
+        let mut last = None;
+        for d in path_depths(depth_mm, PATH_STEPS) {
+            match path.press_to(d) {
+                Ok(s) => last = Some(s),
+                Err(_) => break,
+            }
+        }
+        let p_free = normal_unknown_area(&op, &prof, depth_mm, None, tol()).p;
+        let state = match last {
+            Some(s) => Pressed {
+                p: s.p,
+                p_free,
+                qx: s.t.qx,
+                qy: s.t.qy,
+                grid: op.grid(),
+            },
+            None => Pressed {
+                p: p_free.clone(),
+                p_free,
+                qx: vec![0.0; len],
+                qy: vec![0.0; len],
+                grid: op.grid(),
+            },
+        };
+        self.pressed.insert(key, state.clone());
+        state
+    }
+
+    /// What friction adds to a curved indenter's pressure on the field grid `op` at the
+    /// bucket `key`: the pressed state's pressure less its frictionless one, resampled from
+    /// the table grid (the field keeps its own, finer frictionless pressure).
+    pub(super) fn friction_pressure_on(
+        &mut self,
+        op: &LayerOperator,
+        key: u64,
+        d: f64,
+    ) -> Vec<f64> {
+        let s = self.pressed(key, d);
+        let g = op.grid();
+        let src = s.grid;
+        let extent = src.dx * src.n as f64 / 2.0;
+        let diff: Vec<f64> = s.p.iter().zip(&s.p_free).map(|(a, b)| a - b).collect();
+        (0..g.len())
+            .map(|i| {
+                let (x, y) = g.xy(i);
+                if x.abs() < extent && y.abs() < extent {
+                    src.sample(&diff, x, y)
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// Friction tractions of the pressed state at `depth_mm` (cached; scaled for flat
+    /// punches).
+    pub(super) fn pressing_tractions(&mut self, depth_mm: f64) -> (Vec<f64>, Vec<f64>, Grid) {
+        let h = self.spec.contact.layer.thickness_mm;
+        let flat = matches!(self.normal, Normal::Flat { .. });
+        let key = if flat { 0 } else { quantise(depth_mm, h) };
+        let entry = match self.pressing.get(&key) {
+            Some(e) => e.clone(),
+            None if !flat && self.curved_friction() => {
+                let d = (key as f64 / 200.0 * h).max(1e-4 * h);
+                let s = self.pressed(key, d);
+                let e = (s.qx, s.qy, s.grid);
+                self.pressing.insert(key, e.clone());
+                e
+            }
+            None => {
+                let d = if flat {
+                    1.0
+                } else {
+                    (key as f64 / 200.0 * h).max(1e-4 * h)
+                };
+                let op = self.op_for(d);
+                let p = self.pressure_on(&op, d);
+                let g = op.grid();
+                let (mut sx, mut sy) = (vec![0.0; g.len()], vec![0.0; g.len()]);
+                op.tangential_from_normal(&p, &mut sx, &mut sy);
+                let zero = vec![0.0; g.len()];
+                let s = tangential(&Tangential {
+                    op: &op,
+                    p: &p,
+                    mu: self.spec.contact.material.friction,
+                    target: (&zero, &zero),
+                    source: Some((&sx, &sy)),
+                    x_only: false,
+                    initial: None,
+                    tol: tol(),
+                });
+                let e = (s.qx, s.qy, g);
+                self.pressing.insert(key, e.clone());
+                e
+            }
+        };
+        if flat {
+            let (x, y, g) = entry;
+            (
+                x.iter().map(|v| v * depth_mm).collect(),
+                y.iter().map(|v| v * depth_mm).collect(),
+                g,
+            )
+        } else {
+            entry
+        }
+    }
+}

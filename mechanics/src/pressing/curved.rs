@@ -54,6 +54,9 @@ pub enum PathError {
         "the path is at {at_mm} mm; pressing to {to_mm} mm would unload, which this path does not model"
     )]
     Unloading { at_mm: f64, to_mm: f64 },
+    /// A depth that is not a number would poison every later increment.
+    #[error("the path cannot press to a depth of {0} mm")]
+    NotFinite(f64),
 }
 
 impl<'a> CurvedPath<'a> {
@@ -81,6 +84,9 @@ impl<'a> CurvedPath<'a> {
 
     /// Presses on to `depth_mm` in one increment (module docs).
     pub fn press_to(&mut self, depth_mm: f64) -> Result<PressingSolution, PathError> {
+        if !depth_mm.is_finite() {
+            return Err(PathError::NotFinite(depth_mm));
+        }
         if depth_mm < self.depth_mm {
             return Err(PathError::Unloading {
                 at_mm: self.depth_mm,
@@ -351,5 +357,14 @@ mod tests {
             path.press_to(0.05),
             Err(PathError::Unloading { .. })
         ));
+        assert!(matches!(
+            path.press_to(f64::NAN),
+            Err(PathError::NotFinite(_))
+        ));
+        assert_eq!(
+            path.depth_mm(),
+            0.1,
+            "a refused increment leaves the path where it was"
+        );
     }
 }

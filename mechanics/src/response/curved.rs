@@ -94,15 +94,16 @@ impl ContactModel {
         for (d, w) in self.depth_buckets(depth_mm) {
             let key = (d / h * 200.0).round() as u64;
             if !self.field_pressure.contains_key(&key) {
-                let p = self.pressure_on(op, key as f64 / 200.0 * h);
+                let mut p = self.pressure_on(op, key as f64 / 200.0 * h);
+                // Pressed with friction: what the loading path adds, once per bucket.
+                if self.curved_friction() {
+                    let extra = self.friction_pressure_on(op, key);
+                    p.iter_mut().zip(&extra).for_each(|(a, b)| *a += b);
+                }
                 self.field_pressure.insert(key, p);
             }
             if let Some(p) = self.field_pressure.get(&key) {
                 out.iter_mut().zip(p).for_each(|(o, v)| *o += w * v);
-            }
-            if self.curved_friction() {
-                let extra = self.friction_pressure_on(op, key, d);
-                out.iter_mut().zip(&extra).for_each(|(o, v)| *o += w * v);
             }
         }
         out

@@ -58,8 +58,8 @@ pub struct ModelSpec {
     /// Press with friction: the coupled normal–tangential problem ([`crate::pressing`]), in
     /// which the indenter holds the gel's outward flow and presses harder for it (+9 % to
     /// +39 % on the shipped flat punches; a curved indenter along its loading path,
-    /// [`crate::pressing::curved`]: +5 % for the box sphere at 2 mm, +36 % for the can at
-    /// 0.4 mm). `false`: the frictionless pressure, with friction found on it one way
+    /// [`crate::pressing::curved`]: +5.2 % for the box sphere at 2 mm, +36 % for the can
+    /// at 0.4 mm). `false`: the frictionless pressure, with friction found on it one way
     /// (Goodman), as before.
     pub pressing_friction: bool,
     /// Resolution.
@@ -381,7 +381,7 @@ impl ContactModel {
             }
         } else {
             model.normal = model.curved_table(max_depth);
-            model.press_curved_table_with_friction();
+            model.press_curved_table_with_friction()?;
         }
         Ok(model)
     }

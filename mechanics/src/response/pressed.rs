@@ -11,6 +11,7 @@
 
 use super::{ContactModel, Normal, quantise, tol};
 use crate::Indenter;
+use crate::MechanicsError;
 use crate::operator::{Compliance, Grid, LayerOperator};
 use crate::pressing::curved::{CurvedPath, path_depths};
 use crate::solve::{Tangential, normal_unknown_area, tangential};
@@ -21,6 +22,19 @@ use crate::solve::{Tangential, normal_unknown_area, tangential};
 /// table's force is extrapolated across half as many and this many (BENCHMARKS.md, "Curved
 /// indenters pressed with friction").
 pub(super) const PATH_STEPS: usize = 16;
+
+// The table's extrapolation pairs the coarse path's increment k with the fine one's 2k + 1.
+const _: () = assert!(PATH_STEPS.is_multiple_of(2));
+
+/// The paths' inner tolerance: the sweeps stop at a force change of its square root (3e-5),
+/// well under the 0.1 % the table's force is checked to (the extrapolation triples that
+/// noise).
+fn path_tol() -> crate::solve::Tolerance {
+    crate::solve::Tolerance {
+        rel: 1e-9,
+        max_iter: 4000,
+    }
+}
 
 /// The pressed state of a curved indenter at one depth, on the grid of its tables.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,6 +47,8 @@ pub(super) struct Pressed {
     /// Tractions that hold the caught surface (x, y), MPa.
     pub qx: Vec<f64>,
     pub qy: Vec<f64>,
+    /// Cells of the contact that stick.
+    pub stick: Vec<bool>,
     pub grid: Grid,
 }
 
@@ -57,9 +73,9 @@ impl ContactModel {
     }
 
     /// The grid of the force ratio's path to `depth_mm`: `cells_curved` cells across 2.4
-    /// Hertz half-widths √(Rδ) — the contact's narrow width, which for the can's strip is
-    /// a fifth of the √(A/π) the tables' grids are sized by (6 cells across the strip at
-    /// 0.3 mm there; 30 here) — over the tables' span.
+    /// Hertz half-widths √(Rδ) — the contact's narrow width; the tables' grids are sized by
+    /// √(A/π), which for the can's long strip gives them 6 cells across it at 0.3 mm, this
+    /// grid about 14 — over the tables' span.
     fn ratio_operator(&self, depth_mm: f64) -> LayerOperator {
         let c = &self.spec.contact;
         let table = self.op_for(depth_mm);
@@ -88,9 +104,9 @@ impl ContactModel {
     /// ratio interpolated in √δ between its increments (the ratio converges with the grid
     /// where the force alone does not: the same reasoning as the flat punch's exact κ times
     /// its grid's ratio).
-    pub(super) fn press_curved_table_with_friction(&mut self) {
+    pub(super) fn press_curved_table_with_friction(&mut self) -> Result<(), MechanicsError> {
         if !self.curved_friction() {
-            return;
+            return Ok(());
         }
         let Normal::Curved {
             depths_mm,
@@ -98,38 +114,49 @@ impl ContactModel {
             ..
         } = &self.normal
         else {
-            return;
+            return Ok(());
         };
         let Some(&deepest) = depths_mm.last() else {
-            return;
+            return Ok(());
         };
         let op = self.ratio_operator(deepest);
         let prof = self.profile_on(&op);
         let mu = self.spec.contact.material.friction;
-        // The path's force ratio at its increments' depths.
+        // The path's force ratio at its increments' depths; NaN where an increment did not
+        // solve (refused below: a silent 1 would be the frictionless answer).
         let ratios = |steps: usize| -> Vec<f64> {
-            let mut path = CurvedPath::new(&op, &prof, mu, tol());
+            let mut path = CurvedPath::new(&op, &prof, mu, path_tol());
             path_depths(deepest, steps)
                 .into_iter()
                 .map(|d| {
-                    let held = path.press_to(d).map_or(f64::NAN, |s| s.force_n);
-                    let free = normal_unknown_area(&op, &prof, d, None, tol()).force_n;
+                    let held = path
+                        .press_to(d)
+                        .ok()
+                        .filter(|s| s.converged)
+                        .map_or(f64::NAN, |s| s.force_n);
+                    let free = normal_unknown_area(&op, &prof, d, None, path_tol()).force_n;
                     held / free
                 })
                 .collect()
         };
         // The catch lags one increment, so the force errs at first order in the increment:
         // Richardson across PATH_STEPS / 2 and PATH_STEPS increments, at the coarse path's
-        // depths (every other one of the fine path's). Within 0.05 % of an independent
+        // depths (every other one of the fine path's). Within 0.09 % of an independent
         // finite-element solution on the box sphere, where 16 increments alone were 0.4 %
         // high (BENCHMARKS.md, "Curved indenters pressed with friction").
         let (coarse, fine) = (ratios(PATH_STEPS / 2), ratios(PATH_STEPS));
         let mut points = vec![(0.0, 1.0)];
         for (k, d) in path_depths(deepest, PATH_STEPS / 2).into_iter().enumerate() {
             let r = 2.0 * fine.get(2 * k + 1).copied().unwrap_or(f64::NAN) - coarse[k];
-            if r.is_finite() && r > 0.0 {
-                points.push((d.sqrt(), r));
+            if !(r.is_finite() && r > 0.0) {
+                return Err(MechanicsError::OutOfRange {
+                    name: "pressing-with-friction force ratio",
+                    value: r,
+                    allowed: "finite and positive: the loading path did not solve at this \
+                              depth; run the bench without `pressing_friction`",
+                });
             }
+            points.push((d.sqrt(), r));
         }
         let ratio = |d: f64| -> f64 {
             let x = d.sqrt();
@@ -148,40 +175,44 @@ impl ContactModel {
         if let Normal::Curved { forces_n, .. } = &mut self.normal {
             *forces_n = scaled;
         }
+        Ok(())
     }
 
-    /// The pressed state at `depth_mm` on the grid of its tangential tables: its loading
-    /// path followed there in [`PATH_STEPS`] increments (cached by the depth's bucket).
-    pub(super) fn pressed(&mut self, key: u64, depth_mm: f64) -> Pressed {
+    /// The pressed state at the depth bucket `key` (0.5 % of the thickness each) on the grid
+    /// of that depth's tangential tables: its loading path followed there in [`PATH_STEPS`]
+    /// increments (cached). The depth comes from the key, so a cached state always lives on
+    /// the grid `op_for` gives its depth.
+    pub(super) fn pressed(&mut self, key: u64) -> Pressed {
         if let Some(p) = self.pressed.get(&key) {
             return p.clone();
         }
+        let h = self.spec.contact.layer.thickness_mm;
+        let depth_mm = (key as f64 / 200.0 * h).max(1e-4 * h);
         let op = self.op_for(depth_mm);
         let prof = self.profile_on(&op);
         let mu = self.spec.contact.material.friction;
-        let mut path = CurvedPath::new(&op, &prof, mu, tol());
-        let len = op.grid().len();
-        let mut last = None;
-        for d in path_depths(depth_mm, PATH_STEPS) {
-            match path.press_to(d) {
-                Ok(s) => last = Some(s),
-                Err(_) => break,
-            }
-        }
-        let p_free = normal_unknown_area(&op, &prof, depth_mm, None, tol()).p;
+        let mut path = CurvedPath::new(&op, &prof, mu, path_tol());
+        // The path's depths increase from a finite start: no increment is refused.
+        let last = path_depths(depth_mm, PATH_STEPS)
+            .into_iter()
+            .filter_map(|d| path.press_to(d).ok())
+            .last();
+        let p_free = normal_unknown_area(&op, &prof, depth_mm, None, path_tol()).p;
         let state = match last {
             Some(s) => Pressed {
                 p: s.p,
                 p_free,
                 qx: s.t.qx,
                 qy: s.t.qy,
+                stick: s.t.stick,
                 grid: op.grid(),
             },
             None => Pressed {
+                stick: p_free.iter().map(|v| *v > 0.0).collect(),
+                qx: vec![0.0; p_free.len()],
+                qy: vec![0.0; p_free.len()],
                 p: p_free.clone(),
                 p_free,
-                qx: vec![0.0; len],
-                qy: vec![0.0; len],
                 grid: op.grid(),
             },
         };
@@ -192,13 +223,8 @@ impl ContactModel {
     /// What friction adds to a curved indenter's pressure on the field grid `op` at the
     /// bucket `key`: the pressed state's pressure less its frictionless one, resampled from
     /// the table grid (the field keeps its own, finer frictionless pressure).
-    pub(super) fn friction_pressure_on(
-        &mut self,
-        op: &LayerOperator,
-        key: u64,
-        d: f64,
-    ) -> Vec<f64> {
-        let s = self.pressed(key, d);
+    pub(super) fn friction_pressure_on(&mut self, op: &LayerOperator, key: u64) -> Vec<f64> {
+        let s = self.pressed(key);
         let g = op.grid();
         let src = s.grid;
         let extent = src.dx * src.n as f64 / 2.0;
@@ -224,8 +250,7 @@ impl ContactModel {
         let entry = match self.pressing.get(&key) {
             Some(e) => e.clone(),
             None if !flat && self.curved_friction() => {
-                let d = (key as f64 / 200.0 * h).max(1e-4 * h);
-                let s = self.pressed(key, d);
+                let s = self.pressed(key);
                 let e = (s.qx, s.qy, s.grid);
                 self.pressing.insert(key, e.clone());
                 e

@@ -22,14 +22,15 @@ impl ContactModel {
         // with friction starts from its loading path's state instead.
         let (p, press, (sx, sy)) = if self.curved_friction() {
             let h = c.layer.thickness_mm;
-            let s = self.pressed(super::quantise(depth_mm, h), depth_mm);
+            let s = self.pressed(super::quantise(depth_mm, h));
+            debug_assert_eq!(s.grid, grid, "a pressed state on another depth's grid");
             let (mut sx, mut sy) = (vec![0.0; grid.len()], vec![0.0; grid.len()]);
             op.tangential_from_normal(&s.p, &mut sx, &mut sy);
             let a = grid.area();
             let press = TangentialSolution {
                 fx_n: s.qx.iter().sum::<f64>() * a,
                 fy_n: s.qy.iter().sum::<f64>() * a,
-                stick: s.p.iter().map(|v| *v > 0.0).collect(),
+                stick: s.stick,
                 qx: s.qx,
                 qy: s.qy,
                 outer: 0,

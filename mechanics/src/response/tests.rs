@@ -246,7 +246,9 @@ fn a_curved_indenter_pressed_with_friction_follows_its_loading_path() {
     assert_eq!(none.normal_force_n(d), free.normal_force_n(d));
     let ratio = |m: &ContactModel, d: f64| m.normal_force_n(d) / free.normal_force_n(d);
     let (shallow, deep) = (ratio(&held, 0.05), ratio(&held, d));
-    // The path's example on a finer grid: 1.3617 at 0.4 mm, 1.177 at 0.1 mm.
+    // 1.338 measured here at 0.3 mm (27 Nov); the path example on finer grids gives
+    // 1.3617 at 0.4 mm and 1.1820 at 0.1 mm (32 cells, 16 increments), 1.31 between them
+    // by interpolation in √δ.
     assert!(deep > 1.3 && deep < 1.37, "{deep}");
     assert!(shallow > 1.0 && shallow < deep, "{shallow} vs {deep}");
     // The slip limit starts from the pressed state's own pressure: against the model's Fz
@@ -259,10 +261,9 @@ fn a_curved_indenter_pressed_with_friction_follows_its_loading_path() {
     assert!((r1 / r0 - 1.0).abs() < 0.01, "{r1} vs {r0}");
     // The field carries the path's pressure and tractions, and its surface under the
     // strip follows the can (u_z = δ at the centre, within the table grid's 1.2 mm cells).
-    // The one-way (Goodman) field pulls every caught point back to where it started, and
-    // that traction's coupling lifts the surface the frictionless pressure had pushed
-    // down: 38 % short at the centre here. Beside the strip, the caught surface's outward
-    // flow is kept, not pulled back.
+    // Printed for BENCHMARKS.md, not required (the default's gap is not a property to
+    // keep): the one-way (Goodman) field's centre (0.186 for 0.3 mm, 27 Nov) and its
+    // in-plane field beside the strip (a third of the path's).
     let pressed = State {
         depth_mm: d,
         shear_n: 0.0,
@@ -275,11 +276,16 @@ fn a_curved_indenter_pressed_with_friction_follows_its_loading_path() {
     let g = f1.grid;
     let centre = |f: &Field| g.sample(&f.uz, 0.0, 0.0);
     assert!((centre(&f1) / d - 1.0).abs() < 0.03, "{}", centre(&f1));
-    assert!(centre(&f0) < 0.8 * d, "{}", centre(&f0));
     let beside = |f: &Field| g.sample(&f.uy, 0.0, 4.0);
     assert!(
-        beside(&f1) > 2.0 * beside(&f0) && beside(&f0) > 0.0,
-        "{} vs {}",
+        beside(&f1) > 0.0,
+        "the caught surface flows outward: {}",
+        beside(&f1)
+    );
+    eprintln!(
+        "u_z at the centre: path {:.4}, one-way {:.4} (δ {d}); u_y 4 mm beside: path {:.4}, one-way {:.4}",
+        centre(&f1),
+        centre(&f0),
         beside(&f1),
         beside(&f0)
     );

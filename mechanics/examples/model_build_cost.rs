@@ -90,7 +90,7 @@ fn main() {
             .shear_curve(1.0)
             .and_then(|(b, _)| b.f.last().copied())
             .map_or(f64::NAN, |q| q / fz);
-        let arm = -m.tilting_moments_nmm(1.0, 0.0).1;
+        let arm = m.tilt_arms_mm(1.0).0;
         let ur = f.map_or(f64::NAN, |f| {
             f.grid.sample(&f.ux, 0.75 * c.diameter_mm, 0.0)
         });

@@ -77,6 +77,26 @@ impl<'a> CurvedPath<'a> {
         }
     }
 
+    /// The indenter placed sideways by (`dx_mm`, `dy_mm`) before it touches: every point it
+    /// catches is held that far from where it rests, so pressed with friction that never
+    /// slips (μ → ∞) in one increment it is a bonded contact sheared by that offset. Its
+    /// difference from the unshifted contact is the linear (full-stick) response to a small
+    /// shift, e.g. the tilting moment a sheared contact carries through the layer's
+    /// coupling. (Shifting a contact already pressed is a different problem: a sweep that
+    /// sees only a microscopic change stops before the pressure has felt it.)
+    pub fn displaced(
+        op: &'a dyn Compliance,
+        profile: &'a [f64],
+        mu: f64,
+        tol: Tolerance,
+        (dx_mm, dy_mm): (f64, f64),
+    ) -> Self {
+        let mut path = Self::new(op, profile, mu, tol);
+        path.ux.iter_mut().for_each(|u| *u = dx_mm);
+        path.uy.iter_mut().for_each(|u| *u = dy_mm);
+        path
+    }
+
     /// The depth the path has reached, mm.
     pub fn depth_mm(&self) -> f64 {
         self.depth_mm
@@ -310,6 +330,45 @@ mod tests {
             tol: tol(),
         });
         (t, ())
+    }
+
+    #[test]
+    fn a_shifts_moment_and_a_tilts_shear_force_are_reciprocal() {
+        // Betti's theorem on the contact held without slip (the coupled operator is
+        // symmetric): the pressure's first moment per unit shift along x equals the shear
+        // force per unit tilt about y, θ·∫x Δp_shift dA = s·ΔFx_tilt, the tilt pressing
+        // the indenter deeper by θx. The two sides come from different loadings, so a sign
+        // or a factor lost in the coupling or in the displaced stick targets breaks it.
+        let op = layer(16);
+        let g = op.grid();
+        let prof = sphere(g);
+        let (shift_mm, theta) = (1e-3, 1e-4);
+        let tilted: Vec<f64> = (0..g.len()).map(|i| prof[i] - theta * g.xy(i).0).collect();
+        let solve = |prof: &[f64], offset| {
+            CurvedPath::displaced(&op, prof, 1e6, tol(), offset)
+                .press_to(DEPTH_MM)
+                .expect("forward")
+        };
+        let (base, shifted, tilt) = (
+            solve(&prof, (0.0, 0.0)),
+            solve(&prof, (shift_mm, 0.0)),
+            solve(&tilted, (0.0, 0.0)),
+        );
+        let moment = |s: &PressingSolution| -> f64 {
+            (0..g.len()).map(|i| g.xy(i).0 * s.p[i]).sum::<f64>() * g.area()
+        };
+        let per_shift = (moment(&shifted) - moment(&base)) / shift_mm;
+        let per_tilt = (tilt.t.fx_n - base.t.fx_n) / theta;
+        assert!(
+            per_shift > 0.0,
+            "the leading side presses harder: {per_shift}"
+        );
+        assert!(
+            (per_tilt / per_shift - 1.0).abs() < 0.02,
+            "moment per shift {per_shift} N, shear per tilt {per_tilt} N"
+        );
+        // The shift itself is a plain shear: Fx along it, nothing across.
+        assert!(shifted.t.fx_n > 0.0 && shifted.t.fy_n.abs() < 1e-6 * shifted.t.fx_n);
     }
 
     #[test]

@@ -3,7 +3,6 @@
 
 use std::f64::consts::PI;
 
-use super::shapes::profile;
 use super::{ContactModel, Normal, tol};
 use crate::Indenter;
 use crate::operator::{Compliance, Grid, LayerOperator, fast_size};
@@ -47,13 +46,7 @@ impl ContactModel {
                 dx,
             };
             let op = LayerOperator::new(grid, h, mu_mod, nu);
-            let prof: Vec<f64> = (0..grid.len())
-                .map(|i| {
-                    let (x, y) = grid.xy(i);
-                    profile(&c.indenter, c.layer.width_mm, x, y)
-                })
-                .collect();
-            let s = normal_unknown_area(&op, &prof, d, None, tol());
+            let s = normal_unknown_area(&op, &self.profile_on(&op), d, None, tol());
             let a = (s.area_mm2 / PI).sqrt();
             growth = (a / a_h).max(1.0) * 1.1;
             depths.push(d);

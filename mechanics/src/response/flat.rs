@@ -1,5 +1,5 @@
-//! Pressing with friction: a flat punch's coupled solve, the one-way friction holding any
-//! pressed contact, and the tilting arm of a flat punch's shear ([`crate::pressing`]).
+//! Pressing with friction: a flat punch's coupled solve and the one-way friction holding any
+//! pressed contact ([`crate::pressing`]).
 
 use super::shapes::matched_dx;
 use super::tol;
@@ -65,46 +65,6 @@ pub(super) fn held_by_friction(
         tol: tol(),
     });
     (t, (sx, sy))
-}
-
-/// The tilting arms of a stuck flat punch sheared along x and along y, mm: pressed 1 mm and
-/// held level, then shifted 1 µm along each axis; the change of the pressure's first moment
-/// about that axis over the change of the tangential force. The unshifted state is solved
-/// once for both.
-pub(super) fn tilt_arms(op: &LayerOperator, mask: &[bool]) -> (f64, f64) {
-    let g = op.grid();
-    let zero = vec![0.0; g.len()];
-    let shift = vec![1e-3; g.len()];
-    let solve = |dx: &[f64], dy: &[f64]| {
-        pressing(&Pressing {
-            op,
-            mask,
-            uz: &vec![1.0; g.len()],
-            target: (dx, dy),
-            mu: 1e6,
-            tol: tol(),
-        })
-    };
-    let moment = |s: &PressingSolution, axis: usize| -> (f64, f64) {
-        let m = (0..g.len())
-            .map(|i| {
-                let (x, y) = g.xy(i);
-                s.p[i] * if axis == 0 { x } else { y }
-            })
-            .sum::<f64>()
-            * g.area();
-        (m, if axis == 0 { s.t.fx_n } else { s.t.fy_n })
-    };
-    let base = solve(&zero, &zero);
-    let arm = |shifted: &PressingSolution, axis: usize| {
-        let ((m0, f0), (m1, f1)) = (moment(&base, axis), moment(shifted, axis));
-        if (f1 - f0).abs() > 0.0 {
-            (m1 - m0) / (f1 - f0)
-        } else {
-            0.0
-        }
-    };
-    (arm(&solve(&shift, &zero), 0), arm(&solve(&zero, &shift), 1))
 }
 
 /// The layer operator for a flat punch's face with `cells` cells across its footprint (the

@@ -38,9 +38,12 @@ mod flat;
 mod pressed;
 mod shapes;
 mod tangential;
+mod tilt;
 
-use flat::{flat_pressing, tilt_arms};
-use shapes::{face_mask, matched_dx, profile};
+pub use tilt::tilting_moments_nmm;
+
+use flat::flat_pressing;
+use shapes::{face_mask, matched_dx};
 
 /// What the model must be able to answer.
 #[derive(Debug, Clone, PartialEq)]
@@ -214,8 +217,10 @@ pub struct ContactModel {
     /// A curved indenter's pressed states with friction, by depth bucket.
     pressed: BTreeMap<u64, pressed::Pressed>,
     /// Tilting-moment arms (mm) of a flat punch's shear along x and along y (zero when
-    /// no shear is built, and for curved indenters).
-    tilt_arms_mm: (f64, f64),
+    /// no shear is built, and for curved indenters: theirs are in `tilt`).
+    flat_tilt_arms_mm: (f64, f64),
+    /// A curved indenter's tilting-moment arms (mm) by depth bucket.
+    tilt: BTreeMap<u64, (f64, f64)>,
 }
 
 fn tol() -> Tolerance {
@@ -303,7 +308,8 @@ impl ContactModel {
             field_pressure: BTreeMap::new(),
             pressing: BTreeMap::new(),
             pressed: BTreeMap::new(),
-            tilt_arms_mm: (0.0, 0.0),
+            flat_tilt_arms_mm: (0.0, 0.0),
+            tilt: BTreeMap::new(),
             spec: spec.clone(),
         };
         let extent = c.indenter.footprint_mm();
@@ -354,12 +360,9 @@ impl ContactModel {
                 let free = free_on(&op, &mask);
                 force = 2.0 * c.material.contact_modulus_mpa() * a * kappa * s.force_n / free;
             }
-            // Tangential forces come from the same grid pressure: scaled as the normal force
-            // is, so the slip limit is μ times the model's Fz (unscaled, 0.579 Fz for μ = 0.6
-            // on the 9.5 mm punch).
-            let calibration = force / s.force_n;
+            // (The tangential tables' forces are scaled to this force: `tangential_table`.)
             if spec.shear {
-                model.tilt_arms_mm = tilt_arms(&op, &mask);
+                model.flat_tilt_arms_mm = tilt::flat_tilt_arms(&op, &mask);
             }
             model.pressing.insert(0, (s.t.qx, s.t.qy, grid));
             model.normal = Normal::Flat {
@@ -370,13 +373,11 @@ impl ContactModel {
             };
             model.op = Some(op);
             if spec.shear {
-                let mut t = model.tangential_table(1.0, Kind::Shear);
-                t.backbone.f.iter_mut().for_each(|f| *f *= calibration);
+                let t = model.tangential_table(1.0, Kind::Shear);
                 model.shear.insert(0, t);
             }
             if spec.twist {
-                let mut t = model.tangential_table(1.0, Kind::Twist);
-                t.backbone.f.iter_mut().for_each(|f| *f *= calibration);
+                let t = model.tangential_table(1.0, Kind::Twist);
                 model.twist.insert(0, t);
             }
         } else {
@@ -384,19 +385,6 @@ impl ContactModel {
             model.press_curved_table_with_friction()?;
         }
         Ok(model)
-    }
-
-    /// The tilting moments (Tx, Ty), N·mm, that the tangential forces (Fx, Fy) of a flat
-    /// punch carry, about the contact's centre on the gel surface (z into the gel, the
-    /// moment of the tractions on the gel): a stuck punch sheared along x presses harder on
-    /// its leading side through the layer's coupling, My = −arm·Fx, Mx = +arm·Fy. Linear
-    /// (full-stick) arms: about 0.53 mm on the box gel's 9.5 mm punch, 0.91 mm on the
-    /// 12.68 mm one, 1.31 mm on the portable gel's 12.5 mm punch
-    /// (`cargo run --release -p mechanics --example pressing_friction`). Zero for curved
-    /// indenters and when the model was built without shear.
-    pub fn tilting_moments_nmm(&self, fx_n: f64, fy_n: f64) -> (f64, f64) {
-        let (ax, ay) = self.tilt_arms_mm;
-        (ay * fy_n, -ax * fx_n)
     }
 
     /// The contact it models.
@@ -622,15 +610,7 @@ impl ContactModel {
                 unit.p.iter().map(|v| v * depth_mm).collect()
             }
             Normal::Curved { .. } => {
-                let g = op.grid();
-                let c = &self.spec.contact;
-                let prof: Vec<f64> = (0..g.len())
-                    .map(|i| {
-                        let (x, y) = g.xy(i);
-                        profile(&c.indenter, c.layer.width_mm, x, y)
-                    })
-                    .collect();
-                normal_unknown_area(op, &prof, depth_mm, None, tol()).p
+                normal_unknown_area(op, &self.profile_on(op), depth_mm, None, tol()).p
             }
         }
     }

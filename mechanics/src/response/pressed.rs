@@ -61,7 +61,7 @@ impl ContactModel {
     }
 
     /// The indenter's surface on `op`'s grid.
-    fn profile_on(&self, op: &LayerOperator) -> Vec<f64> {
+    pub(super) fn profile_on(&self, op: &LayerOperator) -> Vec<f64> {
         let g = op.grid();
         let c = &self.spec.contact;
         (0..g.len())
@@ -122,32 +122,37 @@ impl ContactModel {
         let op = self.ratio_operator(deepest);
         let prof = self.profile_on(&op);
         let mu = self.spec.contact.material.friction;
-        // The path's force ratio at its increments' depths; NaN where an increment did not
-        // solve (refused below: a silent 1 would be the frictionless answer).
-        let ratios = |steps: usize| -> Vec<f64> {
+        // The frictionless force where the ratio is taken, the coarse path's depths (once;
+        // it was solved again for each path, 24 solves for these 8).
+        let free: Vec<f64> = path_depths(deepest, PATH_STEPS / 2)
+            .into_iter()
+            .map(|d| normal_unknown_area(&op, &prof, d, None, path_tol()).force_n)
+            .collect();
+        // The path's force at its increments' depths; NaN where an increment did not solve
+        // (refused below: a silent frictionless force would pass for the answer).
+        let held = |steps: usize| -> Vec<f64> {
             let mut path = CurvedPath::new(&op, &prof, mu, path_tol());
             path_depths(deepest, steps)
                 .into_iter()
                 .map(|d| {
-                    let held = path
-                        .press_to(d)
+                    path.press_to(d)
                         .ok()
                         .filter(|s| s.converged)
-                        .map_or(f64::NAN, |s| s.force_n);
-                    let free = normal_unknown_area(&op, &prof, d, None, path_tol()).force_n;
-                    held / free
+                        .map_or(f64::NAN, |s| s.force_n)
                 })
                 .collect()
         };
         // The catch lags one increment, so the force errs at first order in the increment:
         // Richardson across PATH_STEPS / 2 and PATH_STEPS increments, at the coarse path's
-        // depths (every other one of the fine path's). Within 0.09 % of an independent
-        // finite-element solution on the box sphere, where 16 increments alone were 0.4 %
-        // high (BENCHMARKS.md, "Curved indenters pressed with friction").
-        let (coarse, fine) = (ratios(PATH_STEPS / 2), ratios(PATH_STEPS));
+        // depths (every other one of the fine path's: coarse k is fine 2k + 1). Within
+        // 0.09 % of an independent finite-element solution on the box sphere, where 16
+        // increments alone were 0.4 % high (BENCHMARKS.md, "Curved indenters pressed with
+        // friction").
+        let (coarse, fine) = (held(PATH_STEPS / 2), held(PATH_STEPS));
         let mut points = vec![(0.0, 1.0)];
         for (k, d) in path_depths(deepest, PATH_STEPS / 2).into_iter().enumerate() {
-            let r = 2.0 * fine.get(2 * k + 1).copied().unwrap_or(f64::NAN) - coarse[k];
+            let fine_k = fine.get(2 * k + 1).copied().unwrap_or(f64::NAN);
+            let r = (2.0 * fine_k - coarse[k]) / free[k];
             if !(r.is_finite() && r > 0.0) {
                 return Err(MechanicsError::OutOfRange {
                     name: "pressing-with-friction force ratio",

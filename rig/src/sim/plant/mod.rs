@@ -18,7 +18,6 @@
 //!   table, disturbed and let slip (thesis §6.3; [`super::grasp`]).
 
 use std::collections::BTreeMap;
-use std::f64::consts::PI;
 
 use mechanics::contact::Contact;
 use mechanics::friction::{Backbone, FrictionElement};
@@ -27,12 +26,11 @@ use mechanics::unloading::TingContact;
 use mechanics::{Indenter, Prony, PronyState, PronyTerm};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
 
 use super::grasp::Grasp;
 use crate::RigError;
 use crate::config::AxisRole;
-use crate::device::{ForceRange, STATUS_SATURATED, SimTruth, Wrench};
+use crate::device::Wrench;
 use grasping::{GraspCurves, GraspReference};
 
 /// How markers are laid out on the elastomer (thesis §3.3 and §6.2).
@@ -182,6 +180,9 @@ struct Channel {
     origin: f64,
     last_pos: f64,
     curve: Option<(f64, Backbone, Vec<f64>)>,
+    /// The contact's tilting-moment arms (mm) and the depth they were found at (shear
+    /// channel only).
+    tilt: Option<(f64, (f64, f64))>,
 }
 
 /// Largest integration step while anything moves, so depth-nonlinear laws stay accurate.
@@ -537,6 +538,7 @@ impl Plant {
                 origin: x,
                 last_pos: x,
                 curve: None,
+                tilt: None,
             };
             self.shear = self.needs.shear.then(|| fresh(shear_pos, &self.prony));
             self.twist = self.needs.twist.then(|| fresh(twist_pos, &self.prony));
@@ -550,6 +552,10 @@ impl Plant {
             1.0
         };
         let d_el = d.min(BASE_CONTACT_FRACTION * self.spec.contact.layer.thickness_mm);
+        let disturbed = self
+            .disturbance
+            .is_some_and(|dist| dist.t0_ns < t1_ns && dist.t1_ns > t0_ns);
+        let grasping = self.grasp.is_some();
         let shear_moving = self.moving(AxisRole::Shear, t1_ns);
         let twist_moving = self.moving(AxisRole::Rotation, t1_ns);
         for (channel, pos, moving, is_shear) in [
@@ -561,9 +567,18 @@ impl Plant {
             };
             // The backbone is only needed when the tangential stage moves; it is refreshed
             // then if the depth changed (solving it costs milliseconds to a second).
+            // The tilting arms with it, or when a disturbance pushes sideways: only then can
+            // a tangential force act on them (a curved contact's are solved per depth
+            // bucket, 0.1–3 s each; a depth ramp under a sheared contact does not re-solve
+            // them, as it does not re-solve the backbone). A grasp's Nano17 sits behind the
+            // sponge and reads no tilt: none are solved there.
+            let arms_wanted = is_shear && !grasping && (pos != ch.last_pos || disturbed);
             if pos != ch.last_pos {
                 Self::curve(&mut self.model, is_shear, d_el, &mut ch.curve);
                 ch.last_pos = pos;
+            }
+            if arms_wanted && ch.tilt.is_none_or(|(td, _)| (td - d_el).abs() > 1e-9) {
+                ch.tilt = Some((d_el, self.model.tilt_arms_mm(d_el)));
             }
             let Some((_, backbone, _)) = ch.curve.as_ref() else {
                 ch.state.advance_linear(&self.prony, dt_s, 0.0);
@@ -583,142 +598,6 @@ impl Plant {
             ch.state.cap_hereditary(limit);
         }
         self.grasp_step(t0_ns, t1_ns, d_el, p, kinetic);
-    }
-
-    /// The true wrench at the plant's current time, before sensor effects.
-    pub(crate) fn true_wrench(&self) -> Wrench {
-        if self.grasp.is_some() {
-            // Behind the sponge, the Nano17 feels the squeeze and the sponge side's share.
-            let l = self.grasp_loads().unwrap_or_default();
-            return Wrench {
-                fx_n: 0.0,
-                fy_n: l.sponge_n,
-                fz_n: self.normal_n,
-                tx_nmm: 0.0,
-                ty_nmm: 0.0,
-                tz_nmm: l.sponge_nmm,
-            };
-        }
-        let mut fy = 0.0;
-        let mut tz = self.twist.as_ref().map(|c| c.state.value()).unwrap_or(0.0);
-        if let Some(d) = self.disturbance
-            && self.t_ns >= d.t0_ns
-            && self.t_ns < d.t1_ns
-            && self.in_contact
-        {
-            let phase = 2.0 * PI * d.frequency_hz * (self.t_ns - d.t0_ns) as f64 * 1e-9;
-            fy += d.force_y_n * phase.sin();
-            tz += d.torque_z_nmm * phase.sin();
-        }
-        let fx = self.shear.as_ref().map(|c| c.state.value()).unwrap_or(0.0);
-        // A stuck punch's shear tilts its pressure through the layer's coupling.
-        let (tx, ty) = self.model.tilting_moments_nmm(fx, fy);
-        Wrench {
-            fx_n: fx,
-            fy_n: fy,
-            fz_n: self.normal_n,
-            tx_nmm: tx,
-            ty_nmm: ty,
-            tz_nmm: tz,
-        }
-    }
-
-    /// Ground truth at `t_ns`: depth, the wrench without sensor effects, the long-term
-    /// (equilibrium) wrench of the present state, and the contact's slip state.
-    pub(crate) fn truth(&mut self, t_ns: u64) -> SimTruth {
-        self.advance_to(t_ns);
-        let d = self.depth_at(t_ns);
-        let stick = |c: &Option<Channel>| -> Option<f64> {
-            let c = c.as_ref()?;
-            let (_, b, s) = c.curve.as_ref()?;
-            let x = b.displacement_at(c.element.force());
-            let n = b.x.len();
-            if n == 0 {
-                return None;
-            }
-            let xa = x.abs();
-            if xa >= b.x[n - 1] || c.element.sliding() {
-                return Some(0.0);
-            }
-            let i = b.x.partition_point(|v| *v <= xa).clamp(1, n - 1);
-            let t = (xa - b.x[i - 1]) / (b.x[i] - b.x[i - 1]);
-            Some(s[i - 1] * (1.0 - t) + s[i] * t)
-        };
-        let h = self.spec.contact.layer.thickness_mm;
-        let fx_eq = self
-            .shear
-            .as_ref()
-            .map(|c| c.element.force())
-            .unwrap_or(0.0);
-        let (tx_eq, ty_eq) = if self.grasp.is_some() {
-            (0.0, 0.0)
-        } else {
-            self.model.tilting_moments_nmm(fx_eq, 0.0)
-        };
-        SimTruth {
-            depth_mm: d,
-            wrench: self.true_wrench(),
-            equilibrium: Wrench {
-                fx_n: fx_eq,
-                fy_n: self.grasp_loads().map(|l| l.sponge_n).unwrap_or(0.0),
-                fz_n: self.equilibrium_normal_n(t_ns),
-                tx_nmm: tx_eq,
-                ty_nmm: ty_eq,
-                tz_nmm: self
-                    .twist
-                    .as_ref()
-                    .map(|c| c.element.force())
-                    .unwrap_or(0.0),
-            },
-            contact_radius_mm: if d > 0.0 {
-                self.model.contact_radius_mm(d.min(0.95 * h))
-            } else {
-                0.0
-            },
-            shear_stick_fraction: stick(&self.shear),
-            twist_stick_fraction: stick(&self.twist),
-            shear_sliding: self.shear.as_ref().is_some_and(|c| c.element.sliding()),
-            twist_sliding: self.twist.as_ref().is_some_and(|c| c.element.sliding()),
-            shear_slips: self.shear.as_ref().map(|c| c.element.slips()).unwrap_or(0),
-            twist_slips: self.twist.as_ref().map(|c| c.element.slips()).unwrap_or(0),
-            object_slips: self.grasp.as_ref().map(|g| g.state().slips).unwrap_or(0),
-            grasp: self.grasp_truth(),
-        }
-    }
-
-    /// Reads the simulated sensor at `t_ns`: true wrench plus bias, noise at the sensor's
-    /// resolution, quantisation to it, and clipping with the saturation flag.
-    pub(crate) fn sense(&mut self, t_ns: u64, range: &ForceRange) -> (Wrench, u32) {
-        self.advance_to(t_ns);
-        let truth = self.true_wrench();
-        let mut status = 0;
-        let noise = self.geometry.noise;
-        let mut channel = |v: f64, bias: f64, res: f64, lim: f64, rng: &mut StdRng| -> f64 {
-            let z: f64 = if noise {
-                rng.sample(StandardNormal)
-            } else {
-                0.0
-            };
-            let raw = ((v + bias + z * res) / res).round() * res;
-            if raw.abs() > lim {
-                status |= STATUS_SATURATED;
-                raw.signum() * lim
-            } else {
-                raw
-            }
-        };
-        let (fr, tr) = (range.force_resolution_n, range.torque_resolution_nmm);
-        let b = self.bias;
-        let rng = &mut self.rng;
-        let w = Wrench {
-            fx_n: channel(truth.fx_n, b.fx_n, fr, range.fxy_n, rng),
-            fy_n: channel(truth.fy_n, b.fy_n, fr, range.fxy_n, rng),
-            fz_n: channel(truth.fz_n, b.fz_n, fr, range.fz_n, rng),
-            tx_nmm: channel(truth.tx_nmm, b.tx_nmm, tr, range.torque_nmm, rng),
-            ty_nmm: channel(truth.ty_nmm, b.ty_nmm, tr, range.torque_nmm, rng),
-            tz_nmm: channel(truth.tz_nmm, b.tz_nmm, tr, range.torque_nmm, rng),
-        };
-        (w, status)
     }
 
     /// A copy of the contact model, for a camera to compute surface fields from without
@@ -793,3 +672,4 @@ mod grasping;
 mod normal;
 #[cfg(test)]
 mod tests;
+mod wrench;

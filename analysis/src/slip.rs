@@ -63,6 +63,27 @@ pub struct Thresholds {
     pub lag: f64,
 }
 
+impl Thresholds {
+    /// The same thresholds for a torsion block: the force cue's plateau squared. A circular
+    /// contact stuck out to radius c takes a shear increment at a stiffness that grows as a
+    /// power of c and a twist increment at one that grows as that power plus two: c and c³ on
+    /// a half-space (Mindlin 1949, Lubkin 1951; Johnson 1985, §7.2–7.3), c² and c⁴ on a layer
+    /// much thinner than c, which acts as a bed of springs. The shipped pads (contact radius
+    /// over thickness 1.5 on the box, 3.1 on the portable) are nearer the thin layer, so the
+    /// step whose torque increment falls to r² of the first steps' has about the stuck core of
+    /// a shear step whose increment falls to r. With a gradual approach to gross slip (a
+    /// pressed contact whose edge already slides inward, `mechanics::pressing`) the shear's
+    /// plateau read on `portable-rotation` called slip at 4° with a fifth of the contact still
+    /// stuck, two steps before the simulator's stuck fraction fell below a tenth; squared it
+    /// calls it at 6°, where the simulator does.
+    pub fn for_torsion(self) -> Self {
+        Self {
+            plateau: self.plateau.powi(2),
+            ..self
+        }
+    }
+}
+
 impl Default for Thresholds {
     fn default() -> Self {
         Self {
@@ -254,6 +275,37 @@ mod tests {
         let peak = 1.5 + 1.5 * (1.0 - (-0.45f64 / 0.3).exp());
         assert!((mu - peak / 5.0).abs() < 1e-9, "{mu}");
         assert_eq!(r.first_by_cue[1], None);
+    }
+
+    /// A twist's torque bends over more slowly than a shear force for the same stuck core
+    /// (on a thin layer, increments as (c/a)⁴ where a shear's fall as (c/a)²). Read with the
+    /// shear's plateau the twist "slips" while c/a is still 0.65; with the torsion
+    /// thresholds when the core is as small as the shear's plateau means (c/a below 0.5).
+    #[test]
+    fn a_twist_is_judged_by_the_same_stuck_core_as_a_shear() {
+        // The stuck core's radius over the contact's at each degree of twist; each degree's
+        // torque increment is its fourth power.
+        let core = [1.0, 1.0, 0.85, 0.75, 0.65, 0.55, 0.45, 0.35, 0.25, 0.15f64];
+        let load: Vec<f64> = (1..=10).map(f64::from).collect();
+        let tangential: Vec<f64> = core
+            .iter()
+            .scan(0.0, |t, c| {
+                *t += c.powi(4);
+                Some(*t)
+            })
+            .collect();
+        let b = Block {
+            normal_n: vec![1.0; load.len()],
+            load,
+            tangential,
+            ..Default::default()
+        };
+        let shear = classify(&b, Thresholds::default()).expect("block");
+        let twist = classify(&b, Thresholds::default().for_torsion()).expect("block");
+        // Increments 0.52, 0.32, 0.18 (index 4, c/a 0.65: below the shear's quarter), 0.09,
+        // 0.04 (index 6, c/a 0.45: below its square).
+        assert_eq!(shear.onset, Some(4), "{:?}", shear.steps);
+        assert_eq!(twist.onset, Some(6), "{:?}", twist.steps);
     }
 
     #[test]

@@ -23,12 +23,32 @@ fn dry(name: &str, seed: u64, dir: &Path) -> PathBuf {
 fn portable_sensor() -> SensorFile {
     static SENSOR: std::sync::OnceLock<SensorFile> = std::sync::OnceLock::new();
     SENSOR
+        .get_or_init(|| calibrate(&portable_runs(), &Default::default()).unwrap())
+        .clone()
+}
+
+/// The portable sensor's calibration runs: normal, shear and rotation of seed 1.
+fn portable_runs() -> Vec<PathBuf> {
+    ["portable-normal", "portable-shear", "portable-rotation"]
+        .iter()
+        .map(|n| shared_dry_run(n))
+        .collect()
+}
+
+/// The portable sensor's traction map, calibrated on the same runs as [`portable_sensor`],
+/// at the cell and support its calibration chooses there (1.5 mm, 1.1; BENCHMARKS.md): the
+/// method that reads a shape it was not calibrated on.
+fn portable_traction_sensor() -> SensorFile {
+    static SENSOR: std::sync::OnceLock<SensorFile> = std::sync::OnceLock::new();
+    SENSOR
         .get_or_init(|| {
-            let runs: Vec<PathBuf> = ["portable-normal", "portable-shear", "portable-rotation"]
-                .iter()
-                .map(|n| shared_dry_run(n))
-                .collect();
-            calibrate(&runs, &Default::default()).unwrap()
+            let opts = experiments::sensor::calibrate::CalibrateOptions {
+                method: experiments::sensor::calibrate::Method::Traction,
+                cell_mm: Some(1.5),
+                support: Some(1.1),
+                symmetric: false,
+            };
+            calibrate(&portable_runs(), &opts).unwrap()
         })
         .clone()
 }
@@ -383,7 +403,7 @@ fn the_real_mini_sequence_gets_nominal_traction_maps() {
 #[test]
 fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
     let tmp = tempfile::tempdir().unwrap();
-    portable_sensor()
+    portable_traction_sensor()
         .write(&tmp.path().join("sensor.yaml"))
         .unwrap();
     let text = crate::support::shipped_text("lifting-can")
@@ -402,7 +422,7 @@ fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
     );
     // The run keeps the sensor it read with.
     let kept = SensorFile::read(&o.dir.join(experiments::runner::GELSIGHT_SENSOR_FILE)).unwrap();
-    assert_eq!(kept, portable_sensor());
+    assert_eq!(kept, portable_traction_sensor());
     let rows = csv_rows(&o.dir.join("tactile.csv"));
     let steps = csv_rows(&o.dir.join("steps.csv"));
     // A step's Nano17 Fz and the mean of the GelSight's Fz over its frames.
@@ -420,21 +440,33 @@ fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
         )
     };
     let (nano, mean) = by_step("hold");
+    let (twist_nano, twist_mean) = by_step("twist");
+    eprintln!(
+        "hold: GelSight {mean:.3} N, Nano17 {nano:.3} N; twist: {twist_mean:.3} N, {twist_nano:.3} N"
+    );
     // Calibrated on a flat punch, read on a can lying across the pad: the squeeze within
-    // 40 % (BENCHMARKS: the can is outside the calibration; the unseen-shape target
-    // is not met). 6.75 N against 5.05 N (28 Nov), since the can's shear tractions carry its
-    // weight in full (they carried it over the tables' grid ratio, 6 % short, and the
-    // reading was within a third).
+    // half (BENCHMARKS: the can is outside the calibration; the unseen-shape target
+    // is not met). The traction map reads the hold at 6.93 N against 5.02 N (+38 %, 28 Nov,
+    // pressed with friction); the field moments, which this test used before, read it at
+    // 11.8 N: a punch face catches the gel where it started, a curved contact catches it
+    // already pushed outward, so the same force leaves a larger field under the can.
     assert!(
-        (mean - nano).abs() < 0.4 * nano,
+        (mean - nano).abs() < 0.5 * nano,
         "GelSight {mean} N vs Nano17 {nano} N"
+    );
+    // The twist's tractions are told apart from the squeeze: under the 10 N·mm twist at
+    // 2 Hz the squeeze reads as it does in the hold, within 10 points of the Nano17's (+42 %
+    // against +38 %; the field moments read 0–36 N there).
+    assert!(
+        ((twist_mean / twist_nano) - (mean / nano)).abs() < 0.1,
+        "twist: GelSight {twist_mean} N vs Nano17 {twist_nano} N; hold {mean} N vs {nano} N"
     );
     // After the twist and the swing the reading has kept the gel's history: the lowering
     // reads as it does in a control run whose twist and swing are plain holds of the same
-    // length (same seed, same timing), within 5 points of the Nano17's force. The twist's
-    // field is outside the calibration (its elastic reading swings 0–36 N at 2 Hz under a
-    // steady 5 N): taken into the load history it left the lowering 9 points higher than
-    // the control's; before negative readings were kept out of it, more. (The lowering's
+    // length (same seed, same timing), within 5 points of the Nano17's force. (Read by the
+    // field moments, whose elastic reading swung 0–36 N at 2 Hz through the twist, the twist
+    // taken into the load history left the lowering 9 points higher than the control's
+    // before negative readings were kept out of it.) (The lowering's
     // bias itself is not the hold's: under the held grip the gel creeps deeper, and the can,
     // a shape the flat-punch calibration never saw, reads higher as it does.)
     let (lower_nano, lower_mean) = by_step("lower");
@@ -453,7 +485,7 @@ fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
     );
     let control_dir = tmp.path().join("control");
     std::fs::create_dir_all(&control_dir).unwrap();
-    portable_sensor()
+    portable_traction_sensor()
         .write(&control_dir.join("sensor.yaml"))
         .unwrap();
     let loaded = crate::support::load_text(&control_dir, &control_text).unwrap();
@@ -513,24 +545,6 @@ fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
         compared * 10 >= rows.len() * 9,
         "{compared} of {} frames",
         rows.len()
-    );
-    // The twist is far outside the flat-punch calibration: its readings say so with a wider
-    // uncertainty than the hold's.
-    let sd_median = |label: &str| {
-        let step = &steps.iter().find(|s| s["label"] == label).unwrap()["step"];
-        let mut v: Vec<f64> = rows
-            .iter()
-            .filter(|r| &r["step"] == step)
-            .map(|r| r["gelsight_fz_sd_n"].parse().unwrap())
-            .collect();
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    assert!(
-        sd_median("twist") > 2.0 * sd_median("hold"),
-        "{} vs {}",
-        sd_median("twist"),
-        sd_median("hold")
     );
     // Refusals at validation.
     let missing = text.replace("gelsight_force: sensor.yaml", "gelsight_force: none.yaml");
@@ -605,10 +619,7 @@ fn a_grasp_calibrated_in_its_jig_reads_the_relaxing_squeeze() {
 #[test]
 fn the_scale_fit_calibrates_and_its_file_carries_the_reference_fields() {
     let tmp = tempfile::tempdir().unwrap();
-    let runs: Vec<PathBuf> = ["portable-normal", "portable-shear", "portable-rotation"]
-        .iter()
-        .map(|n| shared_dry_run(n))
-        .collect();
+    let runs = portable_runs();
     let opts = experiments::sensor::calibrate::CalibrateOptions {
         method: experiments::sensor::calibrate::Method::Scale,
         ..Default::default()
@@ -680,10 +691,7 @@ fn the_box_sensor_calibrated_with_its_twist_reads_its_torque() {
 #[test]
 fn the_traction_maps_cell_is_the_one_with_the_smallest_held_out_error() {
     use experiments::sensor::calibrate::{CELLS, CalibrateOptions, Method};
-    let runs: Vec<PathBuf> = ["portable-normal", "portable-shear", "portable-rotation"]
-        .iter()
-        .map(|n| shared_dry_run(n))
-        .collect();
+    let runs = portable_runs();
     let opts = |cell_mm| CalibrateOptions {
         method: Method::Traction,
         cell_mm,
@@ -737,10 +745,7 @@ fn the_traction_maps_cell_is_the_one_with_the_smallest_held_out_error() {
 #[test]
 fn a_symmetric_sensor_keeps_the_cans_twist_out_of_the_squeeze() {
     let tmp = tempfile::tempdir().unwrap();
-    let runs: Vec<PathBuf> = ["portable-normal", "portable-shear", "portable-rotation"]
-        .iter()
-        .map(|n| shared_dry_run(n))
-        .collect();
+    let runs = portable_runs();
     let symmetric = symmetric_sensor(&runs);
     let text = crate::support::shipped_text("lifting-can").replace("times: 10", "times: 1");
     let loaded = crate::support::load_text(tmp.path(), &text).unwrap();

@@ -22,9 +22,9 @@
 //! README, "Finite pads"): the fit says so in its provenance ([`FieldNu::near_sides`]).
 //!
 //! What it rests on: the field of the pressing model the rig names. A punch face that sticks
-//! (`sim: {pressing_friction: true}`) moves the field outside it by 9–26 % against a
-//! frictionless one, which would read as about 0.01–0.02 of ν; a real bench must name how its
-//! punch presses.
+//! (the default; `sim: {pressing_friction: false}` for a frictionless one) moves the field
+//! outside it by 9–26 % against a frictionless one, which would read as about 0.01–0.02 of ν;
+//! a real bench must name how its punch presses.
 
 use analysis::field::decompose;
 use mechanics::response::{ContactModel, ModelSpec, State};

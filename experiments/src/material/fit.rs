@@ -199,9 +199,9 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
         (true, true) => None,
     };
     let pressing_model = if laws.iter().any(|l| l.spec.pressing_friction) {
-        "the punch face stuck (the rig's `pressing_friction`)"
+        "the punch face stuck (pressed with friction, the default)"
     } else {
-        "a frictionless punch face (the rig names no `pressing_friction`)"
+        "a frictionless punch face (the rig's `pressing_friction: false`)"
     };
     let chosen: Option<FittedNu> = match (&field, &poisson) {
         (Some(Ok(f)), _) => Some(FittedNu {
@@ -420,7 +420,9 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
             shear: false,
             twist: false,
             field_view_mm: None,
-            pressing_friction: sim.and_then(|s| s.pressing_friction).unwrap_or(false),
+            pressing_friction: sim
+                .map(|s| s.presses_with_friction())
+                .unwrap_or(rig::config::PRESSING_FRICTION_DEFAULT),
             quality: spec.quality,
         },
         finite_strain: sim.and_then(|s| s.finite_strain).unwrap_or(false),
@@ -555,7 +557,18 @@ fn friction_of(runs: &[Run]) -> Option<Friction> {
             contact_motion: None,
         };
         let report = analysis::slip::classify(&block, analysis::slip::Thresholds::default())?;
-        let onset = report.onset?;
+        // Gross slip is where the force first drops (stick–slip), or else where the force cue
+        // says it stopped rising. Pressed with friction (`sim: {pressing_friction: true}`) a
+        // contact's edge already slides inward, so the force bends over gradually and keeps
+        // climbing after the cue's plateau (a fourth of the first steps' slope) toward μ·Fz:
+        // there the largest ratio before the drop, not before the plateau, brackets the
+        // limit (a 0.35 gel read 0.334 at the plateau, 0.349 at the drop).
+        let drop = (1..block.tangential.len()).find(|&i| {
+            block.tangential[..i]
+                .iter()
+                .any(|&f| block.tangential[i] < f)
+        });
+        let onset = drop.or(report.onset)?;
         let ratio = |i: usize| block.tangential[i] / block.normal_n[i].max(1e-9);
         // The steps bracket the limit: it is above the last step that held, and below where
         // the next step would have reached had it held (its ratio plus the last increment).
@@ -565,7 +578,22 @@ fn friction_of(runs: &[Run]) -> Option<Friction> {
         } else {
             ratio(held)
         };
-        let after: Vec<f64> = (onset + 1..block.load.len()).map(ratio).collect();
+        // Sliding: where the force fell, the contact slid and came to rest at the sliding
+        // level (a stick–slip run re-sticks and climbs on the next step, which says nothing
+        // of it); without a fall, the steps after the onset.
+        let slid: Vec<f64> = drop
+            .map(|d| {
+                (d..block.tangential.len())
+                    .filter(|&i| block.tangential[i] < block.tangential[i - 1])
+                    .map(ratio)
+                    .collect()
+            })
+            .unwrap_or_default();
+        let after: Vec<f64> = if slid.is_empty() {
+            (onset + 1..block.load.len()).map(ratio).collect()
+        } else {
+            slid
+        };
         Some(Friction {
             static_mu: ratio(held) + 0.5 * rise,
             static_sd: 0.5 * rise,
@@ -633,7 +661,8 @@ fn file(
         Some(f) => format!(
             "friction: bracketed by the shear steps of {} — above the last step that held, \
              below where the next would have reached (the middle, ± half the bracket); \
-             kinetic_friction: the mean tangential-to-normal ratio of the steps after slip",
+             kinetic_friction: the mean tangential-to-normal ratio of the steps whose force fell \
+             as the contact slid (or, without a fall, of the steps after slip)",
             runs[f.run].data.protocol_name
         ),
         None => format!(

@@ -7,7 +7,7 @@ use analysis::slip;
 use mechanics::Indenter;
 
 use super::RunData;
-use super::field_analysis::{analyse_fields, indenter_radius_mm, slip_block};
+use super::field_analysis::{analyse_fields, indenter_radius_mm, slip_block, slip_thresholds};
 use super::results::{Block, BlockStep, Kind, Linearity, RefModel, Report, Slip, StepRelax};
 
 /// Minimum settle for a step to count as quasistatic, s.
@@ -249,7 +249,7 @@ pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report
             b.hysteresis = hysteresis(&load, &unloading);
         }
         if b.kind != Kind::Normal
-            && let Some(report) = slip::classify(&slip_block(&b.steps), slip::Thresholds::default())
+            && let Some(report) = slip::classify(&slip_block(&b.steps), slip_thresholds(b.kind))
         {
             b.slip = Some(Slip {
                 report,

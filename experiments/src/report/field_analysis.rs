@@ -306,11 +306,20 @@ pub(super) fn analyse_fields(
         let mut block = slip_block(&b.steps);
         block.centre_over_edge = Some(centre_over_edge);
         block.contact_motion = Some(contact_motion);
-        if let Some(r) = slip::classify(&block, slip::Thresholds::default()) {
+        if let Some(r) = slip::classify(&block, slip_thresholds(b.kind)) {
             slip.report = r;
         }
     }
     None
+}
+
+/// The slip cues' thresholds for a block of `kind` (a twist's force cue is the shear's
+/// cubed: [`slip::Thresholds::for_torsion`]).
+pub(super) fn slip_thresholds(kind: Kind) -> slip::Thresholds {
+    match kind {
+        Kind::Rotation => slip::Thresholds::default().for_torsion(),
+        _ => slip::Thresholds::default(),
+    }
 }
 
 pub(super) fn slip_block(steps: &[BlockStep]) -> slip::Block {

@@ -18,12 +18,15 @@ const SCATTER_RATIO: f64 = 2.5;
 
 /// Why the steps of `kind` cannot be trusted for their time constants, if they cannot:
 /// for each group of steps fitted with the same number of terms (three or more steps), the
-/// first τ whose values scatter by more than [`SCATTER_RATIO`].
+/// first τ whose values scatter by more than [`SCATTER_RATIO`]. A fit that its own checks
+/// already flag (time constants not separable, ill-conditioned: a step unloaded to a few
+/// tens of mN at the contact origin) is left out: its τ are not a measurement of the gel,
+/// and counting them would call every well-determined step's τ unidentified.
 fn scatter(relaxation: &[StepRelax], kind: Kind) -> Option<String> {
     for terms in 1..=3usize {
         let group: Vec<&StepRelax> = relaxation
             .iter()
-            .filter(|s| s.kind == kind && s.fit.terms == terms)
+            .filter(|s| s.kind == kind && s.fit.terms == terms && s.fit.confident())
             .collect();
         if group.len() < 3 {
             continue;
@@ -310,4 +313,53 @@ fn settle(
         "rules": sc.rules.iter().map(|o| json!({"rule": o.rule, "median_settle_s": num(o.median_settle_s),
             "median_abs_error": num(o.median_abs_error), "settled": o.settled, "steps": o.steps})).collect::<Vec<_>>()}),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use analysis::relaxation::StepRelaxation;
+
+    fn step(k: u32, taus_s: Vec<f64>, issues: Vec<String>) -> StepRelax {
+        StepRelax {
+            step: k,
+            kind: Kind::Normal,
+            fit: StepRelaxation {
+                terms: taus_s.len(),
+                f_inf: 1.0,
+                sigma_f_inf: 0.001,
+                amplitudes: vec![0.2; taus_s.len()],
+                taus_s,
+                window_mean: 1.0,
+                rms: 0.001,
+                issues,
+                fit: None,
+            },
+            t_s: Vec::new(),
+            f: Vec::new(),
+            truth: None,
+            start_s: 0.0,
+        }
+    }
+
+    #[test]
+    fn an_ill_conditioned_fit_does_not_make_the_well_determined_steps_unidentified() {
+        let good: Vec<StepRelax> = (1..=4)
+            .map(|k| step(k, vec![1.4 + 0.05 * k as f64, 15.0], Vec::new()))
+            .collect();
+        assert_eq!(scatter(&good, Kind::Normal), None);
+        // The contact origin's step: coincident τ with cancelling amplitudes, flagged by
+        // its own fit.
+        let mut with_bad = good;
+        with_bad.push(step(
+            5,
+            vec![10.96, 10.96],
+            vec!["ill-conditioned fit".into()],
+        ));
+        assert_eq!(scatter(&with_bad, Kind::Normal), None);
+        // A confident step whose τ is off by more than the ratio still says so.
+        with_bad.push(step(6, vec![5.0, 15.0], Vec::new()));
+        let why = scatter(&with_bad, Kind::Normal).expect("scatter found");
+        assert!(why.contains("τ1"), "{why}");
+    }
 }

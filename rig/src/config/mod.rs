@@ -223,9 +223,11 @@ pub struct SimConfig {
     /// Add sensor noise at the sensor's resolution (default true).
     #[serde(default)]
     pub noise: Option<bool>,
-    /// Press flat punches with friction — the coupled normal–tangential contact, in which
-    /// the face holds the gel's outward flow and presses 9–39 % harder on the shipped
-    /// punches (default false: frictionless pressing, friction found on it one way).
+    /// Press with friction — the coupled normal–tangential contact, in which the indenter
+    /// holds the gel's outward flow where it touches and presses harder for it (9–39 % on
+    /// the shipped flat punches; a curved indenter along its loading path). Default
+    /// [`PRESSING_FRICTION_DEFAULT`] (true); `false` gives the frictionless pressure with
+    /// friction found on it one way (Goodman), the round-1 model.
     #[serde(default)]
     pub pressing_friction: Option<bool>,
     /// Press flat punches into a neo-Hookean gel at finite strain: the force times the
@@ -235,6 +237,19 @@ pub struct SimConfig {
     /// flat punch (force linear in depth).
     #[serde(default)]
     pub finite_strain: Option<bool>,
+}
+
+/// Whether a rig presses with friction when its `sim:` section does not say (see
+/// [`SimConfig::pressing_friction`]): a gel of the protocols' μ sticks under pure pressing.
+/// A real rig (no `sim:` section) is taken to press so too where a model of its contact is
+/// needed (`gelrig fit-material`).
+pub const PRESSING_FRICTION_DEFAULT: bool = true;
+
+impl SimConfig {
+    /// The pressing model this bench states, or the default.
+    pub fn presses_with_friction(&self) -> bool {
+        self.pressing_friction.unwrap_or(PRESSING_FRICTION_DEFAULT)
+    }
 }
 
 /// One segment of a path into a YAML document, to locate a value for an error message.

@@ -84,7 +84,7 @@ pub(crate) struct BenchGeometry {
     pub grip_contact_mm: f64,
     pub force_bias_n: f64,
     pub noise: bool,
-    /// Flat punches pressed with friction (`sim: {pressing_friction: true}`).
+    /// Indenters pressed with friction (the default; `sim: {pressing_friction: false}` turns it off).
     pub pressing_friction: bool,
     /// Flat punches pressed at finite strain (`sim: {finite_strain: true}`).
     pub finite_strain: bool,
@@ -108,7 +108,7 @@ impl BenchGeometry {
                 .unwrap_or(sim.normal_contact.mm()),
             force_bias_n: sim.force_bias.map(|f| f.n()).unwrap_or(0.0),
             noise: sim.noise.unwrap_or(true),
-            pressing_friction: sim.pressing_friction.unwrap_or(false),
+            pressing_friction: sim.presses_with_friction(),
             finite_strain: sim.finite_strain.unwrap_or(false),
         })
     }

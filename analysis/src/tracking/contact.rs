@@ -494,10 +494,8 @@ impl ContactFinder {
         // Between the parts: along each column and each row, what lies between its first
         // and last seed block is the contact (a strip's top between its two sides).
         for i in 0..bw {
-            let rows: Vec<usize> = (0..bh)
-                .filter(|&j| self.marks[j * bw + i] == SEED)
-                .collect();
-            if let (Some(&a), Some(&b)) = (rows.first(), rows.last()) {
+            let seeded = |j: &usize| self.marks[j * bw + i] == SEED;
+            if let (Some(a), Some(b)) = ((0..bh).find(seeded), (0..bh).rfind(seeded)) {
                 (a..=b).for_each(|j| self.marks[j * bw + i] = SEED);
             }
         }

@@ -19,6 +19,16 @@ use experiments::sensor::calibrate::{CalibrateOptions, Method};
 use experiments::sensor::reader::Reader;
 use experiments::sensor::{SensorFile, calibrate, load_frames};
 
+/// The portable sensor's calibration runs: the flat punch pressed, sheared and twisted, and
+/// the sphere pressed (a curved contact, which grows as it is pressed, beside the flat one:
+/// the "calibrated on flat circle and sphere runs").
+const PORTABLE_CALIBRATION: [&str; 4] = [
+    "portable-normal",
+    "portable-normal-sphere",
+    "portable-shear",
+    "portable-rotation",
+];
+
 fn dry_run(protocol: &Path, out: &Path, seed: u64) -> PathBuf {
     let loaded = load(protocol, None).unwrap_or_else(|d| panic!("{}", d[0]));
     run_virtual_blocking(&loaded, out, seed).expect("run").dir
@@ -192,17 +202,16 @@ fn grasp_errors(sensor: &SensorFile, dir: &Path) -> Vec<(String, [f64; 4])> {
 /// on three `lifting-can` trials of seed 2, with and without the gel's memory.
 fn grasp(root: &Path, tmp: &Path) {
     let can_cal = can_protocol(root, 3);
-    let normal = dry_run(&root.join("portable-normal.yaml"), &tmp.join("cal"), 1);
-    let shear = dry_run(&root.join("portable-shear.yaml"), &tmp.join("cal"), 1);
-    let rotation = dry_run(&root.join("portable-rotation.yaml"), &tmp.join("cal"), 1);
+    let indentation: Vec<PathBuf> = PORTABLE_CALIBRATION
+        .iter()
+        .map(|p| dry_run(&root.join(format!("{p}.yaml")), &tmp.join("cal"), 1))
+        .collect();
+    let normal = indentation[0].clone();
     let can1 = dry_run(&can_cal, &tmp.join("cal"), 1);
     let can2 = dry_run(&can_cal, &tmp.join("test"), 2);
     let _ = std::fs::remove_file(&can_cal);
     let sensors: [(&str, Vec<PathBuf>); 2] = [
-        (
-            "indentation runs only (the can unseen)",
-            vec![normal.clone(), shear, rotation],
-        ),
+        ("indentation runs only (the can unseen)", indentation),
         (
             "portable-normal + 3 can trials (in the jig)",
             vec![normal, can1],
@@ -248,7 +257,7 @@ fn grasp(root: &Path, tmp: &Path) {
 /// channels' %, what the calibration chooses by) and the can's Fz (one trial, seed 2) in % of
 /// the calibrated span.
 fn support(root: &Path, tmp: &Path) {
-    let cal: Vec<PathBuf> = ["portable-normal", "portable-shear", "portable-rotation"]
+    let cal: Vec<PathBuf> = PORTABLE_CALIBRATION
         .iter()
         .map(|p| dry_run(&root.join(format!("{p}.yaml")), &tmp.join("cal"), 1))
         .collect();
@@ -305,9 +314,10 @@ fn main() {
     let studies: [(&str, &[&str], &[&str]); 2] = [
         (
             "portable",
-            &["portable-normal", "portable-shear", "portable-rotation"],
+            &PORTABLE_CALIBRATION,
             &[
                 "portable-normal",
+                "portable-normal-sphere",
                 "portable-shear",
                 "portable-rotation",
                 "lifting-can",

@@ -11,6 +11,7 @@ mod export;
 mod faults;
 mod finite_strain;
 mod force_sensing;
+mod force_sensing_can;
 mod fuzz;
 mod grasp;
 mod hostile;

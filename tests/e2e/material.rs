@@ -425,6 +425,68 @@ fn a_flat_punchs_marker_field_tells_poissons_ratio_from_one_run() {
     );
 }
 
+/// A bench states its contact model in its rig file's `contact:` section, and
+/// `fit-material` fits with it: the same stuck run, its rig file saying the faces slide
+/// (`contact: {pressing_friction: false}`), reads E∞ high — the stuck face's extra force taken
+/// for a stiffer gel (BENCHMARKS.md: +2.8 %) — and the file's provenance names each model. A
+/// model stated twice, differently, is refused where it is written.
+#[test]
+fn fit_material_fits_with_the_contact_model_the_rig_file_states() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = shared_dry_run("box-normal-flat");
+    let copy = |name: &str, edit: &dyn Fn(String) -> String| {
+        let dir = tmp.path().join(name);
+        crate::support::copy_run_dir(&src, &dir);
+        let rig = dir.join("rig.yaml");
+        let text = std::fs::read_to_string(&rig).unwrap();
+        let edited = edit(text.clone());
+        assert_ne!(edited, text, "{name}: the rig file's `sim:` line changed");
+        std::fs::write(&rig, edited).unwrap();
+        dir
+    };
+    let stuck = copy("stuck", &|t| t + "contact: {pressing_friction: true}\n");
+    let sliding = copy("sliding", &|t| t + "contact: {pressing_friction: false}\n");
+    let (a, _) = fit_material(&[stuck], &tmp.path().join("stuck.yaml"));
+    let (b, _) = fit_material(&[sliding], &tmp.path().join("sliding.yaml"));
+    let (ea, eb) = (
+        a.material.youngs_modulus.mpa(),
+        b.material.youngs_modulus.mpa(),
+    );
+    within(
+        ea,
+        0.25,
+        0.005,
+        "E∞ fitted with the bench's own (stuck) model",
+    );
+    assert!(
+        (1.01..1.06).contains(&(eb / ea)),
+        "fitted as sliding E∞ {eb} MPa, as stuck {ea} MPa"
+    );
+    let says = |m: &MaterialFile, what: &str| m.provenance.iter().any(|p| p.contains(what));
+    assert!(says(&a, "stuck"), "{:?}", a.provenance);
+    assert!(says(&b, "frictionless"), "{:?}", b.provenance);
+    // Stated in `sim:` and `contact:`, differently: the run's rig does not load.
+    let clash = copy("clash", &|t| {
+        t.replace("sim:\n", "sim:\n  pressing_friction: true\n")
+            + "contact: {pressing_friction: false}\n"
+    });
+    let o = std::process::Command::new(gelrig())
+        .arg("fit-material")
+        .arg(&clash)
+        .arg("--out")
+        .arg(tmp.path().join("clash.yaml"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "a contradicting rig file was fitted");
+    assert!(
+        err.contains("rig.yaml:")
+            && err.contains("contradicts")
+            && err.contains("once, under `contact:`"),
+        "{err}"
+    );
+}
+
 /// `gelrig fit-material RUNS --out OUT`, which must succeed: the file and the command's output.
 fn fit_material(runs: &[PathBuf], out: &Path) -> (MaterialFile, String) {
     let o = std::process::Command::new(gelrig())

@@ -199,9 +199,10 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
         (true, true) => None,
     };
     let pressing_model = if laws.iter().any(|l| l.spec.pressing_friction) {
-        "the punch face stuck (pressed with friction, the default)"
+        "the punch face stuck (pressed with friction: the rig file's `contact:` or `sim:` \
+         `pressing_friction`, default true)"
     } else {
-        "a frictionless punch face (the rig's `pressing_friction: false`)"
+        "a frictionless punch face (the rig file's `pressing_friction: false`)"
     };
     let chosen: Option<FittedNu> = match (&field, &poisson) {
         (Some(Ok(f)), _) => Some(FittedNu {
@@ -409,7 +410,6 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
         .and_then(|m| m.values())
         .cloned()
         .ok_or_else(|| unfit(dir, "its protocol gives no material", "report this"))?;
-    let sim = loaded.rig.sim.as_ref();
     // The layer's force at 1 MPa: the contact model is linear in the modulus.
     let mut contact = spec.contact.clone();
     contact.material.youngs_modulus_mpa = 1.0;
@@ -420,12 +420,10 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
             shear: false,
             twist: false,
             field_view_mm: None,
-            pressing_friction: sim
-                .map(|s| s.presses_with_friction())
-                .unwrap_or(rig::config::PRESSING_FRICTION_DEFAULT),
+            pressing_friction: loaded.rig.presses_with_friction(),
             quality: spec.quality,
         },
-        finite_strain: sim.and_then(|s| s.finite_strain).unwrap_or(false),
+        finite_strain: loaded.rig.finite_strain(),
     };
     let indenter = serde_json::to_string(&loaded.protocol.indenter).unwrap_or_default();
     let speeds = loaded

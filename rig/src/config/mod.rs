@@ -13,7 +13,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::units::{AxisQuantity, AxisSpeed, AxisUnit, Duration, Force, Frequency, Length};
 
+mod contact;
 mod devices;
+pub use contact::{ContactModelConfig, PRESSING_FRICTION_DEFAULT};
 pub use devices::{
     CameraConfig, CameraDriver, DisturberConfig, DisturberDriver, ForceConfig, ForceDriver,
     ForceModel, SimCameraTiming,
@@ -94,6 +96,10 @@ pub struct RigConfig {
     /// Geometry of the simulated bench; required when any device is simulated.
     #[serde(default)]
     pub sim: Option<SimConfig>,
+    /// How the bench's indenter meets its gel, where a model of the contact is needed (a
+    /// real bench's `gelrig fit-material`; the simulated bench presses by it too).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactModelConfig>,
     /// Written by `gelrig sim serve` into the rig file it binds: every device is a twin.
     /// Never write it for a real bench.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -227,7 +233,8 @@ pub struct SimConfig {
     /// holds the gel's outward flow where it touches and presses harder for it (9–39 % on
     /// the shipped flat punches; a curved indenter along its loading path). Default
     /// [`PRESSING_FRICTION_DEFAULT`] (true); `false` gives the frictionless pressure with
-    /// friction found on it one way (Goodman), the round-1 model.
+    /// friction found on it one way (Goodman), the round-1 model. The same as
+    /// `contact: {pressing_friction}` ([`ContactModelConfig`]), which a real bench uses.
     #[serde(default)]
     pub pressing_friction: Option<bool>,
     /// Press flat punches into a neo-Hookean gel at finite strain: the force times the
@@ -237,19 +244,6 @@ pub struct SimConfig {
     /// flat punch (force linear in depth).
     #[serde(default)]
     pub finite_strain: Option<bool>,
-}
-
-/// Whether a rig presses with friction when its `sim:` section does not say (see
-/// [`SimConfig::pressing_friction`]): a gel of the protocols' μ sticks under pure pressing.
-/// A real rig (no `sim:` section) is taken to press so too where a model of its contact is
-/// needed (`gelrig fit-material`).
-pub const PRESSING_FRICTION_DEFAULT: bool = true;
-
-impl SimConfig {
-    /// The pressing model this bench states, or the default.
-    pub fn presses_with_friction(&self) -> bool {
-        self.pressing_friction.unwrap_or(PRESSING_FRICTION_DEFAULT)
-    }
 }
 
 /// One segment of a path into a YAML document, to locate a value for an error message.
@@ -318,6 +312,7 @@ impl RigConfig {
     /// present where a simulator needs it.
     pub fn check(&self) -> Vec<ConfigIssue> {
         let mut issues = self.check_ranges();
+        issues.extend(self.check_contact_model());
         for (role, axis) in &self.axes {
             let at = YamlPath::root().key("axes").key(role.name());
             let unit = axis.unit();

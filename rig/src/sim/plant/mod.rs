@@ -108,8 +108,8 @@ impl BenchGeometry {
                 .unwrap_or(sim.normal_contact.mm()),
             force_bias_n: sim.force_bias.map(|f| f.n()).unwrap_or(0.0),
             noise: sim.noise.unwrap_or(true),
-            pressing_friction: sim.presses_with_friction(),
-            finite_strain: sim.finite_strain.unwrap_or(false),
+            pressing_friction: config.presses_with_friction(),
+            finite_strain: config.finite_strain(),
         })
     }
 }

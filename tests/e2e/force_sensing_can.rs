@@ -217,13 +217,15 @@ fn a_grasp_calibrated_in_its_jig_reads_the_relaxing_squeeze() {
         relaxation: None,
         ..sensor.clone()
     });
-    // 2.95 % of the peak with the memory, 13 % without. A history that started each grip
+    // Set frictionless: 2.95 % of the peak with the memory, 13 % without (pressed with
+    // friction, BENCHMARKS' three-trial jig study reads 4.2 % and 12.0 %). A history that started each grip
     // "at rest" (the grip's first reading taken as relaxed) and forgot the last grip read
     // 4.3 %: the can's strip is first seen at about a quarter of the squeeze, so the lift
     // and hold lost that part of the overshoot.
     assert!(with < 3.5, "Fz {with} % of peak with the gel's memory");
     assert!(without > 1.5 * with, "without {without} %, with {with} %");
 }
+
 /// Fitted by symmetry (`gelrig calibrate --symmetric`), a sensor calibrated on the portable
 /// indentation runs reads the can's squeeze through its twist as through its hold: the
 /// twist's field (10 N·mm at 2 Hz, three times any twist of the calibration) has no
@@ -338,7 +340,7 @@ fn calibrated_on_flat_and_sphere_runs_the_sensor_reads_the_unseen_can() {
     assert!(s < 5.0, "scale fit: the can's Fz {s:.2} % of span");
     // And the sphere is what does it: without it the same fit misses (6.7 %).
     assert!(
-        f > m,
+        f > 5.0,
         "moments without the sphere {f:.2} %, with it {m:.2} %"
     );
 }

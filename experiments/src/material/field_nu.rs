@@ -22,9 +22,9 @@
 //! README, "Finite pads"): the fit says so in its provenance ([`FieldNu::near_sides`]).
 //!
 //! What it rests on: the field of the pressing model the rig names. A punch face that sticks
-//! (the default; `sim: {pressing_friction: false}` for a frictionless one) moves the field
-//! outside it by 9–26 % against a frictionless one, which would read as about 0.01–0.02 of ν;
-//! a real bench must name how its punch presses.
+//! (the default; `contact: {pressing_friction: false}` in the rig file for a frictionless one)
+//! moves the field outside it by 9–26 % against a frictionless one, which would read as about
+//! 0.01–0.02 of ν: a real bench names how its punch presses in its rig file's `contact:`.
 
 use analysis::field::decompose;
 use mechanics::response::{ContactModel, ModelSpec, State};

@@ -9,7 +9,7 @@ use mechanics::response::{ContactModel, ModelSpec};
 pub(super) struct ForceLaw {
     /// The model's spec at 1 MPa.
     pub(super) spec: ModelSpec,
-    /// The rig presses at finite strain (`sim: {finite_strain: true}`).
+    /// The rig presses at finite strain (`contact:` or `sim: {finite_strain: true}`).
     pub(super) finite_strain: bool,
 }
 

@@ -97,6 +97,7 @@ const RIG_KEYS: &[&str] = &[
     "camera",
     "disturber",
     "sim",
+    "contact",
     "twins",
 ];
 

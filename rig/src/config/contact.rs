@@ -124,5 +124,16 @@ mod tests {
             "{}",
             issues[0].message
         );
+        let strain = rig("name: b\nsim: {normal_contact: 10 mm}\ncontact: {finite_strain: true}\n");
+        assert!(strain.check().is_empty() && strain.finite_strain());
+        let both = rig(
+            "name: b\nsim: {normal_contact: 10 mm, finite_strain: false, pressing_friction: true}\n\
+             contact: {finite_strain: true, pressing_friction: false}\n",
+        );
+        let paths: Vec<String> = both.check().iter().map(|i| i.path.to_string()).collect();
+        assert_eq!(
+            paths,
+            ["contact.pressing_friction", "contact.finite_strain"]
+        );
     }
 }

@@ -241,7 +241,7 @@ pub struct SimConfig {
     /// reference's stiffening (`mechanics::finite_strain`; 29 % at 20 % strain on the
     /// portable punch; the reference reaches 20 % (box) and 30 % (portable) strain, beyond
     /// which it is extrapolated). Default false: small strain, as the thesis measured its
-    /// flat punch (force linear in depth).
+    /// flat punch (force linear in depth). The same as `contact: {finite_strain}`.
     #[serde(default)]
     pub finite_strain: Option<bool>,
 }

@@ -84,9 +84,10 @@ pub(crate) struct BenchGeometry {
     pub grip_contact_mm: f64,
     pub force_bias_n: f64,
     pub noise: bool,
-    /// Indenters pressed with friction (the default; `sim: {pressing_friction: false}` turns it off).
+    /// Indenters pressed with friction (the default; `pressing_friction: false` under `sim:`
+    /// or `contact:` turns it off).
     pub pressing_friction: bool,
-    /// Flat punches pressed at finite strain (`sim: {finite_strain: true}`).
+    /// Flat punches pressed at finite strain (`finite_strain: true` under `sim:` or `contact:`).
     pub finite_strain: bool,
 }
 

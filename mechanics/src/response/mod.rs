@@ -26,6 +26,7 @@
 
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 use crate::contact::Contact;
 use crate::friction::Backbone;
@@ -34,6 +35,7 @@ use crate::solve::{Tolerance, normal_unknown_area};
 use crate::{Indenter, MechanicsError, punch};
 
 mod curved;
+mod field;
 mod flat;
 mod pressed;
 mod shapes;
@@ -123,8 +125,9 @@ impl TangentialTable {
         self.stick_fraction[i - 1] * (1.0 - t) + self.stick_fraction[i] * t
     }
 
-    /// Tractions for force `f` on the backbone (sign carried), blended between levels.
-    fn tractions_for_force(&self, f: f64) -> (Vec<f64>, Vec<f64>) {
+    /// Adds `weight` × the tractions for force `f` on the backbone (sign carried, blended
+    /// between levels) to (qx, qy) on the table's grid, without a copy of any level.
+    fn add_tractions_for_force(&self, f: f64, weight: f64, qx: &mut [f64], qy: &mut [f64]) {
         let b = &self.backbone;
         let s = f.signum();
         let fa = f.abs().min(b.limit());
@@ -147,17 +150,21 @@ impl TangentialTable {
             &self.tractions[i - 1],
             &self.tractions[i.min(self.tractions.len() - 1)],
         );
-        let blend = |u: &[f64], v: &[f64], p: &[f64]| -> Vec<f64> {
-            u.iter()
-                .zip(v)
-                .zip(p)
-                .map(|((u, v), p)| p + s * ((u - p) * (1.0 - t) + (v - p) * t))
-                .collect()
+        let blend = |out: &mut [f64], u: &[f64], v: &[f64], p: &[f64]| {
+            for (o, ((u, v), p)) in out.iter_mut().zip(u.iter().zip(v).zip(p)) {
+                *o += weight * (p + s * ((u - p) * (1.0 - t) + (v - p) * t));
+            }
         };
-        (
-            blend(&a0.0, &a1.0, &self.pressing.0),
-            blend(&a0.1, &a1.1, &self.pressing.1),
-        )
+        blend(qx, &a0.0, &a1.0, &self.pressing.0);
+        blend(qy, &a0.1, &a1.1, &self.pressing.1);
+    }
+
+    /// The tractions for force `f` (see [`Self::add_tractions_for_force`]).
+    #[cfg(test)]
+    fn tractions_for_force(&self, f: f64) -> (Vec<f64>, Vec<f64>) {
+        let (mut qx, mut qy) = (vec![0.0; self.grid.len()], vec![0.0; self.grid.len()]);
+        self.add_tractions_for_force(f, 1.0, &mut qx, &mut qy);
+        (qx, qy)
     }
 }
 
@@ -202,6 +209,9 @@ enum Normal {
     },
 }
 
+/// Tangential tractions (q_x, q_y) of a pressed state, and their grid.
+type PressingTractions = (Vec<f64>, Vec<f64>, Grid);
+
 /// The precomputed contact model.
 #[derive(Debug, Clone)]
 pub struct ContactModel {
@@ -209,11 +219,15 @@ pub struct ContactModel {
     normal: Normal,
     /// The operator on which tangential tables and fields of flat punches live.
     op: Option<LayerOperator>,
-    shear: BTreeMap<u64, TangentialTable>,
-    twist: BTreeMap<u64, TangentialTable>,
-    field_op: Option<LayerOperator>,
+    /// Tangential tables by depth bucket (a flat punch's at unit depth, key 0), shared:
+    /// a field or a backbone reads one without copying its levels.
+    shear: BTreeMap<u64, Arc<TangentialTable>>,
+    twist: BTreeMap<u64, Arc<TangentialTable>>,
+    field_op: Option<Arc<LayerOperator>>,
     field_pressure: BTreeMap<u64, Vec<f64>>,
-    pressing: BTreeMap<u64, (Vec<f64>, Vec<f64>, Grid)>,
+    /// The pressed state's friction tractions (q_x, q_y) and their grid, by depth bucket
+    /// (a flat punch's at unit depth: key 0 on its table grid, `u64::MAX` on the field grid).
+    pressing: BTreeMap<u64, Arc<PressingTractions>>,
     /// A curved indenter's pressed states with friction, by depth bucket.
     pressed: BTreeMap<u64, pressed::Pressed>,
     /// Tilting-moment arms (mm) of a flat punch's shear along x and along y (zero when
@@ -320,7 +334,7 @@ impl ContactModel {
                 n,
                 dx: matched_dx(&c.indenter, n, span / spec.quality.field_cells as f64),
             };
-            model.field_op = Some(LayerOperator::new(grid, h, mu_mod, nu));
+            model.field_op = Some(Arc::new(LayerOperator::new(grid, h, mu_mod, nu)));
         }
         if c.indenter.is_flat() {
             // The tangential tables live on a grid with `cells_flat` cells across the punch;
@@ -364,7 +378,7 @@ impl ContactModel {
             if spec.shear {
                 model.flat_tilt_arms_mm = tilt::flat_tilt_arms(&op, &mask);
             }
-            model.pressing.insert(0, (s.t.qx, s.t.qy, grid));
+            model.pressing.insert(0, Arc::new((s.t.qx, s.t.qy, grid)));
             model.normal = Normal::Flat {
                 grid,
                 mask,
@@ -374,11 +388,11 @@ impl ContactModel {
             model.op = Some(op);
             if spec.shear {
                 let t = model.tangential_table(1.0, Kind::Shear);
-                model.shear.insert(0, t);
+                model.shear.insert(0, Arc::new(t));
             }
             if spec.twist {
                 let t = model.tangential_table(1.0, Kind::Twist);
-                model.twist.insert(0, t);
+                model.twist.insert(0, Arc::new(t));
             }
         } else {
             model.normal = model.curved_table(max_depth);
@@ -440,27 +454,12 @@ impl ContactModel {
     }
 
     fn curve(&mut self, depth_mm: f64, kind: Kind) -> Option<(Backbone, Vec<f64>)> {
-        let flat = matches!(self.normal, Normal::Flat { .. });
-        if !flat {
-            return self
-                .table(depth_mm, kind)
-                .map(|t| (t.backbone, t.stick_fraction));
-        }
-        // Flat punch: scale the unit-depth table's curve, leave its tractions alone.
-        let wanted = match kind {
-            Kind::Shear => self.spec.shear,
-            Kind::Twist => self.spec.twist,
-        };
-        if !wanted || depth_mm <= 0.0 {
-            return None;
-        }
-        let t = match kind {
-            Kind::Shear => self.shear.get(&0),
-            Kind::Twist => self.twist.get(&0),
-        }?;
+        let t = self.shared_table(depth_mm, kind)?;
+        // A flat punch's table is at unit depth: force and displacement scale with depth.
+        let scale = if self.is_flat() { depth_mm } else { 1.0 };
         let b = Backbone {
-            x: t.backbone.x.iter().map(|v| v * depth_mm).collect(),
-            f: t.backbone.f.iter().map(|v| v * depth_mm).collect(),
+            x: t.backbone.x.iter().map(|v| v * scale).collect(),
+            f: t.backbone.f.iter().map(|v| v * scale).collect(),
         };
         Some((b, t.stick_fraction.clone()))
     }
@@ -475,37 +474,13 @@ impl ContactModel {
         self.table(depth_mm, Kind::Twist)
     }
 
+    /// The table at `depth_mm` as a copy, a flat punch's scaled to that depth.
     fn table(&mut self, depth_mm: f64, kind: Kind) -> Option<TangentialTable> {
-        let wanted = match kind {
-            Kind::Shear => self.spec.shear,
-            Kind::Twist => self.spec.twist,
-        };
-        if !wanted || depth_mm <= 0.0 {
-            return None;
-        }
-        let h = self.spec.contact.layer.thickness_mm;
-        let flat = matches!(self.normal, Normal::Flat { .. });
-        let key = if flat { 0 } else { quantise(depth_mm, h) };
-        let cached = match kind {
-            Kind::Shear => self.shear.get(&key),
-            Kind::Twist => self.twist.get(&key),
-        };
-        let table = match cached {
-            Some(t) => t.clone(),
-            None => {
-                let d = (key as f64 / 200.0 * h).max(1e-4 * h);
-                let t = self.tangential_table(d, kind);
-                match kind {
-                    Kind::Shear => self.shear.insert(key, t.clone()),
-                    Kind::Twist => self.twist.insert(key, t.clone()),
-                };
-                t
-            }
-        };
-        if flat {
+        let shared = self.shared_table(depth_mm, kind)?;
+        let mut t = TangentialTable::clone(&shared);
+        if self.is_flat() {
             // Everything scales with depth: pressure, coupling and friction limit are ∝ d,
             // so the displacement (or twist) and force (or torque) of each level are too.
-            let mut t = table;
             t.backbone.x.iter_mut().for_each(|v| *v *= depth_mm);
             t.backbone.f.iter_mut().for_each(|v| *v *= depth_mm);
             for (qx, qy) in t.tractions.iter_mut() {
@@ -514,55 +489,41 @@ impl ContactModel {
             }
             t.pressing.0.iter_mut().for_each(|v| *v *= depth_mm);
             t.pressing.1.iter_mut().for_each(|v| *v *= depth_mm);
-            return Some(t);
         }
-        Some(table)
+        Some(t)
     }
 
-    /// Unit-depth pressure and pressing friction of a flat punch, solved on a grid twice
-    /// as fine as the field grid (same period) and restricted to it by 2×2 cell averages:
-    /// the edge singularity is resolved where it is solved, and each frame still costs one
-    /// field-grid evaluation (BENCHMARKS.md: 256² field error 1.6 % → see there).
-    fn flat_field_tractions(&mut self) -> Option<(Vec<f64>, Vec<f64>, Vec<f64>)> {
-        if let Some(p) = self.field_pressure.get(&u64::MAX) {
-            let (qx, qy, _) = self.pressing.get(&u64::MAX)?.clone();
-            return Some((p.clone(), qx, qy));
+    /// The table of `depth_mm`'s bucket, solved on first use and shared after: a flat
+    /// punch's at unit depth (everything in it scales with depth), a curved indenter's at
+    /// the bucket's depth. `None` when the channel was not built or out of contact.
+    fn shared_table(&mut self, depth_mm: f64, kind: Kind) -> Option<Arc<TangentialTable>> {
+        let wanted = match kind {
+            Kind::Shear => self.spec.shear,
+            Kind::Twist => self.spec.twist,
+        };
+        if !wanted || depth_mm <= 0.0 {
+            return None;
         }
-        let op = self.field_op.clone()?;
-        let g = op.grid();
-        let c = &self.spec.contact;
-        let fine_grid = Grid {
-            n: 2 * g.n,
-            dx: g.dx / 2.0,
+        let h = self.spec.contact.layer.thickness_mm;
+        let key = if self.is_flat() {
+            0
+        } else {
+            quantise(depth_mm, h)
         };
-        let fine = LayerOperator::new(
-            fine_grid,
-            c.layer.thickness_mm,
-            c.material.shear_modulus_mpa(),
-            c.material.poisson_ratio,
-        );
-        let mask = face_mask(&c.indenter, fine_grid);
-        let press = flat_pressing(
-            &fine,
-            &mask,
-            c.material.friction,
-            self.spec.pressing_friction,
-        );
-        let (p, press) = (press.p, press.t);
-        let restrict = |f: &[f64]| -> Vec<f64> {
-            let (n, m) = (g.n, fine_grid.n);
-            (0..g.len())
-                .map(|i| {
-                    let (ix, iy) = (i % n, i / n);
-                    let k = 2 * iy * m + 2 * ix;
-                    0.25 * (f[k] + f[k + 1] + f[k + m] + f[k + m + 1])
-                })
-                .collect()
+        let cached = match kind {
+            Kind::Shear => self.shear.get(&key),
+            Kind::Twist => self.twist.get(&key),
         };
-        let (p, qx, qy) = (restrict(&p), restrict(&press.qx), restrict(&press.qy));
-        self.field_pressure.insert(u64::MAX, p.clone());
-        self.pressing.insert(u64::MAX, (qx.clone(), qy.clone(), g));
-        Some((p, qx, qy))
+        if let Some(t) = cached {
+            return Some(Arc::clone(t));
+        }
+        let d = (key as f64 / 200.0 * h).max(1e-4 * h);
+        let t = Arc::new(self.tangential_table(d, kind));
+        match kind {
+            Kind::Shear => self.shear.insert(key, Arc::clone(&t)),
+            Kind::Twist => self.twist.insert(key, Arc::clone(&t)),
+        };
+        Some(t)
     }
 
     /// The operator on which the tangential problem at `depth_mm` is solved: the flat
@@ -613,95 +574,6 @@ impl ContactModel {
                 normal_unknown_area(op, &self.profile_on(op), depth_mm, None, tol()).p
             }
         }
-    }
-
-    /// The surface displacement field of `state`, on the field grid (centred on the
-    /// contact). `None` if the model was built without fields.
-    pub fn field(&mut self, state: State) -> Option<Field> {
-        let op = self.field_op.clone()?;
-        let grid = op.grid();
-        let d = state.depth_mm;
-        if d <= 0.0 {
-            let z = vec![0.0; grid.len()];
-            return Some(Field {
-                grid,
-                ux: z.clone(),
-                uy: z.clone(),
-                uz: z,
-            });
-        }
-        let flat = matches!(self.normal, Normal::Flat { .. });
-        let p = match flat {
-            true => {
-                let (unit, _, _) = self.flat_field_tractions()?;
-                unit.iter().map(|v| v * d).collect()
-            }
-            false => self.curved_field_pressure(&op, d),
-        };
-        let (mut qx, mut qy) = (vec![0.0; grid.len()], vec![0.0; grid.len()]);
-        let mut add = |t: (Vec<f64>, Vec<f64>), src: Grid, weight: f64| {
-            if src == grid {
-                for i in 0..grid.len() {
-                    qx[i] += weight * t.0[i];
-                    qy[i] += weight * t.1[i];
-                }
-            } else {
-                // Resample a table's tractions onto the field grid.
-                for i in 0..grid.len() {
-                    let (x, y) = grid.xy(i);
-                    if x.abs() < src.dx * src.n as f64 / 2.0
-                        && y.abs() < src.dx * src.n as f64 / 2.0
-                    {
-                        qx[i] += weight * src.sample(&t.0, x, y);
-                        qy[i] += weight * src.sample(&t.1, x, y);
-                    }
-                }
-            }
-        };
-        // Tangential tractions only for a loaded channel: an unloaded one would cost a
-        // backbone solve for nothing. A curved indenter's tables are those of the two depth
-        // buckets around the depth, blended as its pressure is (a creeping grasp's field
-        // jumped by 3 % where it crossed a bucket's midpoint).
-        let buckets = if flat {
-            vec![(d, 1.0)]
-        } else {
-            self.depth_buckets(d)
-        };
-        for (db, w) in buckets {
-            let shear = if state.shear_n != 0.0 {
-                self.shear_table(db)
-            } else {
-                None
-            };
-            let twist = if state.torque_nmm != 0.0 {
-                self.twist_table(db)
-            } else {
-                None
-            };
-            match (&shear, &twist) {
-                (Some(s), _) => {
-                    add(s.tractions_for_force(state.shear_n), s.grid, w);
-                    if let Some(tw) = &twist {
-                        add(tw.tractions_for_force(state.torque_nmm), tw.grid, w);
-                        add(tw.pressing.clone(), tw.grid, -w);
-                    }
-                }
-                (None, Some(tw)) => add(tw.tractions_for_force(state.torque_nmm), tw.grid, w),
-                // Normal load only: friction still holds the pressed surface where it
-                // touched against the layer's outward flow.
-                (None, None) if flat => {
-                    let (_, qx, qy) = self.flat_field_tractions()?;
-                    let scaled = |q: &[f64]| q.iter().map(|v| v * d).collect();
-                    add((scaled(&qx), scaled(&qy)), grid, 1.0);
-                }
-                (None, None) => {
-                    let (px, py, g) = self.pressing_tractions(db);
-                    add((px, py), g, w);
-                }
-            }
-        }
-        let [ux, uy, uz] = op.full(&qx, &qy, &p);
-        Some(Field { grid, ux, uy, uz })
     }
 }
 

@@ -9,7 +9,9 @@
 //! loading from first touch. Unloading (a receding contact releasing its stuck points) is
 //! not modelled: a retracting indenter is given the loading path's state at its depth.
 
-use super::{ContactModel, Normal, quantise, tol};
+use std::sync::Arc;
+
+use super::{ContactModel, Normal, PressingTractions, quantise, tol};
 use crate::Indenter;
 use crate::MechanicsError;
 use crate::operator::{Compliance, Grid, LayerOperator};
@@ -246,56 +248,44 @@ impl ContactModel {
             .collect()
     }
 
-    /// Friction tractions of the pressed state at `depth_mm` (cached; scaled for flat
-    /// punches).
-    pub(super) fn pressing_tractions(&mut self, depth_mm: f64) -> (Vec<f64>, Vec<f64>, Grid) {
+    /// Friction tractions of the pressed state at `depth_mm`'s bucket (cached and shared;
+    /// a flat punch's at unit depth).
+    pub(super) fn pressing_tractions(&mut self, depth_mm: f64) -> Arc<PressingTractions> {
         let h = self.spec.contact.layer.thickness_mm;
         let flat = matches!(self.normal, Normal::Flat { .. });
         let key = if flat { 0 } else { quantise(depth_mm, h) };
-        let entry = match self.pressing.get(&key) {
-            Some(e) => e.clone(),
-            None if !flat && self.curved_friction() => {
-                let s = self.pressed(key);
-                let e = (s.qx, s.qy, s.grid);
-                self.pressing.insert(key, e.clone());
-                e
-            }
-            None => {
-                let d = if flat {
-                    1.0
-                } else {
-                    (key as f64 / 200.0 * h).max(1e-4 * h)
-                };
-                let op = self.op_for(d);
-                let p = self.pressure_on(&op, d);
-                let g = op.grid();
-                let (mut sx, mut sy) = (vec![0.0; g.len()], vec![0.0; g.len()]);
-                op.tangential_from_normal(&p, &mut sx, &mut sy);
-                let zero = vec![0.0; g.len()];
-                let s = tangential(&Tangential {
-                    op: &op,
-                    p: &p,
-                    mu: self.spec.contact.material.friction,
-                    target: (&zero, &zero),
-                    source: Some((&sx, &sy)),
-                    x_only: false,
-                    initial: None,
-                    tol: tol(),
-                });
-                let e = (s.qx, s.qy, g);
-                self.pressing.insert(key, e.clone());
-                e
-            }
-        };
-        if flat {
-            let (x, y, g) = entry;
-            (
-                x.iter().map(|v| v * depth_mm).collect(),
-                y.iter().map(|v| v * depth_mm).collect(),
-                g,
-            )
-        } else {
-            entry
+        if let Some(e) = self.pressing.get(&key) {
+            return Arc::clone(e);
         }
+        let e = if !flat && self.curved_friction() {
+            let s = self.pressed(key);
+            (s.qx, s.qy, s.grid)
+        } else {
+            let d = if flat {
+                1.0
+            } else {
+                (key as f64 / 200.0 * h).max(1e-4 * h)
+            };
+            let op = self.op_for(d);
+            let p = self.pressure_on(&op, d);
+            let g = op.grid();
+            let (mut sx, mut sy) = (vec![0.0; g.len()], vec![0.0; g.len()]);
+            op.tangential_from_normal(&p, &mut sx, &mut sy);
+            let zero = vec![0.0; g.len()];
+            let s = tangential(&Tangential {
+                op: &op,
+                p: &p,
+                mu: self.spec.contact.material.friction,
+                target: (&zero, &zero),
+                source: Some((&sx, &sy)),
+                x_only: false,
+                initial: None,
+                tol: tol(),
+            });
+            (s.qx, s.qy, g)
+        };
+        let e = Arc::new(e);
+        self.pressing.insert(key, Arc::clone(&e));
+        e
     }
 }

@@ -326,11 +326,23 @@ impl Renderer {
         let offset = (seq.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 44) as usize;
         let mask = self.noise.len() - 1;
         let gain = if self.noisy { 1.0 } else { 0.0 };
-        // Float-to-integer casts saturate, so `+ 0.5` and a cast round and clamp at once.
-        img.iter()
-            .enumerate()
-            .map(|(i, v)| (v + gain * self.noise[(i + offset) & mask] as f32 + 0.5) as u8)
-            .collect()
+        let mut out = vec![0u8; img.len()];
+        // Pixel i takes the texture's value at (i + offset) mod its length: walked as runs
+        // of contiguous slices (one or two per frame) rather than an index masked and
+        // bounds-checked per pixel (BENCHMARKS.md, "Grasp trials that feel slip").
+        let mut at = 0;
+        while at < img.len() {
+            let k = (at + offset) & mask;
+            let run = (img.len() - at).min(self.noise.len() - k);
+            let (src, dst) = (&img[at..at + run], &mut out[at..at + run]);
+            for ((o, v), n) in dst.iter_mut().zip(src).zip(&self.noise[k..k + run]) {
+                // Float-to-integer casts saturate, so `+ 0.5` and a cast round and clamp at
+                // once.
+                *o = (v + gain * *n as f32 + 0.5) as u8;
+            }
+            at += run;
+        }
+        out
     }
 
     /// Frame size, px.

@@ -77,6 +77,14 @@ enum Command {
     Sim(cmd::sim::Cmd),
 }
 
+/// mimalloc rather than the system allocator: a dry run allocates and frees frame-sized
+/// buffers (a 640×480 frame's 3.7 MB of light levels, the field's transforms) at every frame,
+/// and glibc returned them to the kernel and faulted them back each time — 11.8 s of the
+/// 10-trial lifting-can run's 40 s in the kernel (BENCHMARKS.md, "Grasp trials that feel
+/// slip").
+#[global_allocator]
+static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {

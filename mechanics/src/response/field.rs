@@ -2,7 +2,7 @@
 //! tractions of the tables around its depth, gathered on the grids they were solved on,
 //! resampled once onto the field grid, and one pass of the layer operator.
 //!
-//! A dry run asks for a field at every camera frame (3 685 in a 10-trial grasp run), so
+//! A dry run asks for a field at every camera frame (3 684 in the 10-trial `lifting-can` run), so
 //! nothing here copies a table: the tables are shared, a table's levels are blended
 //! straight into one sum per source grid, and only the field cells over the tractions'
 //! support are resampled (BENCHMARKS.md, "Grasp trials that feel slip": the lifting-can dry
@@ -162,29 +162,27 @@ impl ContactModel {
             // A flat punch's tables are at unit depth: at depth d every traction is d times
             // the unit table's at force f/d.
             let scale = if flat { db } else { 1.0 };
-            let (f_shear, f_twist) = (state.shear_n / scale, state.torque_nmm / scale);
-            match (&shear, &twist) {
-                (Some(s), _) => {
-                    gathered.add_table(s, f_shear, w * scale);
-                    if let Some(tw) = &twist {
-                        gathered.add_table(tw, f_twist, w * scale);
-                        // Both tables start from the same pressed state: count it once.
-                        let sum = gathered.on(tw.grid);
-                        let (px, py) = (&tw.pressing.0, &tw.pressing.1);
-                        add_weighted(&mut sum.qx, &mut sum.qy, px, py, -w * scale);
-                    }
-                }
-                (None, Some(tw)) => gathered.add_table(tw, f_twist, w * scale),
-                // Normal load only: friction still holds the pressed surface where it
-                // touched against the layer's outward flow.
-                (None, None) if flat => {
-                    let (px, py, _) = &**self.pressing.get(&u64::MAX)?;
-                    add_weighted(&mut qx, &mut qy, px, py, d);
-                }
-                (None, None) => {
-                    let (px, py, g) = &*self.pressing_tractions(db);
-                    let sum = gathered.on(*g);
-                    add_weighted(&mut sum.qx, &mut sum.qy, px, py, w);
+            // The pressed state, then what each loaded channel adds to it: its table's
+            // tractions less the pressed state the table starts from. A flat punch's pressed
+            // state is the field grid's own (solved finer and restricted): its table's,
+            // resampled from the coarser table grid, put the edge's singular traction
+            // outside the face, and the field jumped there by 0.037 mm (box-size punch,
+            // 0.23 mm deep, 256 cells) the moment any shear was applied.
+            if flat {
+                let (px, py, _) = &**self.pressing.get(&u64::MAX)?;
+                add_weighted(&mut qx, &mut qy, px, py, d);
+            } else {
+                let (px, py, g) = &*self.pressing_tractions(db);
+                let sum = gathered.on(*g);
+                add_weighted(&mut sum.qx, &mut sum.qy, px, py, w);
+            }
+            let loads = [(&shear, state.shear_n), (&twist, state.torque_nmm)];
+            for (table, load) in loads {
+                if let Some(t) = table {
+                    gathered.add_table(t, load / scale, w * scale);
+                    let sum = gathered.on(t.grid);
+                    let (px, py) = (&t.pressing.0, &t.pressing.1);
+                    add_weighted(&mut sum.qx, &mut sum.qy, px, py, -w * scale);
                 }
             }
         }
@@ -249,45 +247,182 @@ impl ContactModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Indenter;
+    use crate::response::{ModelSpec, Quality};
 
-    /// Resampling only over the support gives what sampling every field cell gives, for a
-    /// support off centre, at the source's edge cells and on grids of unrelated cell sizes.
+    /// Resampling only over the support gives what sampling every field cell gives: for an
+    /// interior support (the margin below it and above it), a lone cell at either corner of
+    /// the source (the clamped edges), on destination grids finer, coarser and aligned
+    /// with the source's cells.
     #[test]
     fn resampling_over_the_support_matches_sampling_every_cell() {
         let src_grid = Grid { n: 40, dx: 0.137 };
-        let mut src = OnGrid {
-            grid: src_grid,
-            qx: vec![0.0; src_grid.len()],
-            qy: vec![0.0; src_grid.len()],
+        let blob = |corner: Option<usize>| {
+            let mut src = OnGrid {
+                grid: src_grid,
+                qx: vec![0.0; src_grid.len()],
+                qy: vec![0.0; src_grid.len()],
+            };
+            for i in 0..src_grid.len() {
+                let (x, y) = src_grid.xy(i);
+                if (x - 0.9).hypot(y + 0.4) < 1.1 {
+                    src.qx[i] = 1.0 + x * y;
+                    src.qy[i] = x - 2.0 * y;
+                }
+            }
+            if let Some(i) = corner {
+                src.qx[i] = 3.0;
+            }
+            src
         };
-        for i in 0..src_grid.len() {
-            let (x, y) = src_grid.xy(i);
-            if (x - 0.9).hypot(y + 0.4) < 1.1 {
-                src.qx[i] = 1.0 + x * y;
-                src.qy[i] = x - 2.0 * y;
+        let aligned = Grid { n: 80, dx: 0.137 };
+        for src in [blob(None), blob(Some(0)), blob(Some(src_grid.len() - 1))] {
+            for dst in [Grid { n: 96, dx: 0.071 }, Grid { n: 64, dx: 0.25 }, aligned] {
+                let (mut qx, mut qy) = (vec![0.0; dst.len()], vec![0.0; dst.len()]);
+                resample_add(&src, dst, &mut qx, &mut qy);
+                let half = src_grid.dx * src_grid.n as f64 / 2.0;
+                let mut touched = 0;
+                for i in 0..dst.len() {
+                    let (x, y) = dst.xy(i);
+                    let inside = x.abs() < half && y.abs() < half;
+                    let (ex, ey) = match inside {
+                        true => (
+                            src_grid.sample(&src.qx, x, y),
+                            src_grid.sample(&src.qy, x, y),
+                        ),
+                        false => (0.0, 0.0),
+                    };
+                    assert_eq!((qx[i], qy[i]), (ex, ey), "cell {i} of {dst:?}");
+                    touched += usize::from(ex != 0.0 || ey != 0.0);
+                }
+                assert!(touched > 20, "{touched} cells carry tractions");
             }
         }
-        // A lone cell at the source's corner.
-        src.qx[0] = 3.0;
-        for dst in [Grid { n: 96, dx: 0.071 }, Grid { n: 64, dx: 0.25 }] {
-            let (mut qx, mut qy) = (vec![0.0; dst.len()], vec![0.0; dst.len()]);
-            resample_add(&src, dst, &mut qx, &mut qy);
-            let half = src_grid.dx * src_grid.n as f64 / 2.0;
-            let mut touched = 0;
-            for i in 0..dst.len() {
-                let (x, y) = dst.xy(i);
-                let inside = x.abs() < half && y.abs() < half;
-                let (ex, ey) = match inside {
-                    true => (
-                        src_grid.sample(&src.qx, x, y),
-                        src_grid.sample(&src.qy, x, y),
-                    ),
-                    false => (0.0, 0.0),
-                };
-                assert_eq!((qx[i], qy[i]), (ex, ey), "cell {i} of {dst:?}");
-                touched += usize::from(ex != 0.0 || ey != 0.0);
+    }
+
+    fn model(indenter: Indenter) -> ContactModel {
+        let contact = crate::response::tests::contact(indenter, 2.0);
+        ContactModel::build(ModelSpec {
+            contact,
+            max_depth_mm: 0.5,
+            shear: true,
+            twist: true,
+            field_view_mm: Some((12.0, 9.0)),
+            pressing_friction: true,
+            quality: Quality {
+                field_cells: 96,
+                ..Quality::default()
+            },
+        })
+        .expect("model")
+    }
+
+    fn field(m: &mut ContactModel, depth_mm: f64, shear_n: f64, torque_nmm: f64) -> Field {
+        m.field(State {
+            depth_mm,
+            shear_n,
+            torque_nmm,
+        })
+        .expect("built with fields")
+    }
+
+    /// Largest difference between `a` and `b`'s components over the largest component.
+    fn rel_diff(a: &Field, b: &Field) -> f64 {
+        let (mut worst, mut scale) = (0.0f64, 0.0f64);
+        for (u, v) in [(&a.ux, &b.ux), (&a.uy, &b.uy), (&a.uz, &b.uz)] {
+            for (x, y) in u.iter().zip(v) {
+                worst = worst.max((x - y).abs());
+                scale = scale.max(x.abs());
             }
-            assert!(touched > 20, "{touched} cells carry tractions");
         }
+        worst / scale
+    }
+
+    /// `a + b − c`, component by component.
+    fn plus_minus(a: &Field, b: &Field, c: &Field) -> Field {
+        let f = |u: &[f64], v: &[f64], w: &[f64]| -> Vec<f64> {
+            u.iter()
+                .zip(v)
+                .zip(w)
+                .map(|((x, y), z)| x + y - z)
+                .collect()
+        };
+        Field {
+            grid: a.grid,
+            ux: f(&a.ux, &b.ux, &c.ux),
+            uy: f(&a.uy, &b.uy, &c.uy),
+            uz: f(&a.uz, &b.uz, &c.uz),
+        }
+    }
+
+    /// The field's bookkeeping, against laws the tractions obey: both channels loaded is
+    /// the shear field plus the twist field less the pressed state both tables start from
+    /// (counted once); the least shear continues the pressed field; a flat punch at depth d under (f, t) is d times the field at unit
+    /// depth under (f/d, t/d); a curved indenter between two depth buckets is their fields
+    /// blended by the same weights.
+    #[test]
+    fn fields_obey_superposition_depth_scaling_and_bucket_blending() {
+        let mut flat = model(Indenter::FlatCircle { diameter_mm: 6.0 });
+        let (d, f, t) = (0.23, 0.05, 0.08);
+        let both = field(&mut flat, d, f, t);
+        let shear = field(&mut flat, d, f, 0.0);
+        let twist = field(&mut flat, d, 0.0, t);
+        let pressed = field(&mut flat, d, 0.0, 0.0);
+        let sum = plus_minus(&shear, &twist, &pressed);
+        // Any shear at all continues the pressed field: no jump where the shear starts.
+        let tiny = field(&mut flat, d, 1e-9, 0.0);
+        assert!(
+            rel_diff(&tiny, &pressed) < 1e-6,
+            "{}",
+            rel_diff(&tiny, &pressed)
+        );
+        assert!(rel_diff(&both, &sum) < 1e-12, "{}", rel_diff(&both, &sum));
+        // The shear and twist fields differ from the pressed one: the channels were loaded.
+        assert!(rel_diff(&shear, &pressed) > 1e-3 && rel_diff(&twist, &pressed) > 1e-3);
+        let unit = field(&mut flat, 1.0, f / d, t / d);
+        let scaled = Field {
+            grid: unit.grid,
+            ux: unit.ux.iter().map(|v| v * d).collect(),
+            uy: unit.uy.iter().map(|v| v * d).collect(),
+            uz: unit.uz.iter().map(|v| v * d).collect(),
+        };
+        assert!(
+            rel_diff(&both, &scaled) < 1e-12,
+            "{}",
+            rel_diff(&both, &scaled)
+        );
+
+        let mut sphere = model(Indenter::Sphere { diameter_mm: 12.68 });
+        // Buckets are 0.5 % of the 2 mm thickness: 0.30 and 0.31 mm around 0.3037.
+        let (d0, d1, w1) = (0.30, 0.31, 0.37);
+        let between = field(&mut sphere, d0 + w1 * (d1 - d0), f, t);
+        let (a, b) = (field(&mut sphere, d0, f, t), field(&mut sphere, d1, f, t));
+        let blend = |u: &[f64], v: &[f64]| -> Vec<f64> {
+            u.iter()
+                .zip(v)
+                .map(|(x, y)| (1.0 - w1) * x + w1 * y)
+                .collect()
+        };
+        let blended = Field {
+            grid: a.grid,
+            ux: blend(&a.ux, &b.ux),
+            uy: blend(&a.uy, &b.uy),
+            uz: blend(&a.uz, &b.uz),
+        };
+        assert!(
+            rel_diff(&between, &blended) < 1e-9,
+            "{}",
+            rel_diff(&between, &blended)
+        );
+        assert!(rel_diff(&a, &b) > 1e-3, "the two buckets' fields differ");
+        let (tiny, pressed) = (
+            field(&mut sphere, d0, 1e-9, 0.0),
+            field(&mut sphere, d0, 0.0, 0.0),
+        );
+        assert!(
+            rel_diff(&tiny, &pressed) < 1e-6,
+            "{}",
+            rel_diff(&tiny, &pressed)
+        );
     }
 }

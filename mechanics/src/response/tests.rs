@@ -3,7 +3,8 @@
 use super::*;
 use crate::{Layer, Material, PronyTerm};
 
-fn contact(indenter: Indenter, h: f64) -> Contact {
+/// The box gel's layer and material (h varies) under `indenter`.
+pub(super) fn contact(indenter: Indenter, h: f64) -> Contact {
     Contact::new(
         Layer {
             width_mm: 125.0,

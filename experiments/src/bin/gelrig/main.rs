@@ -79,9 +79,9 @@ enum Command {
 
 /// mimalloc rather than the system allocator: a dry run allocates and frees frame-sized
 /// buffers (a 640×480 frame's 3.7 MB of light levels, the field's transforms) at every frame,
-/// and glibc returned them to the kernel and faulted them back each time — 11.8 s of the
-/// 10-trial lifting-can run's 40 s in the kernel (BENCHMARKS.md, "Grasp trials that feel
-/// slip").
+/// and glibc returned them to the kernel and faulted them back each time: 11.8–22 s of
+/// system time in a 40–62 s 10-trial lifting-can run (BENCHMARKS.md, "Grasp trials that
+/// feel slip").
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

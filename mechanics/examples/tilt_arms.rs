@@ -4,6 +4,10 @@
 //! The arm is My = −arm·Fx: how far ahead of the contact's centre a stuck contact's shear
 //! moves its pressure through the layer's coupling.
 //!
+//! Then, under partial slip, how the arm changes along each contact's shear backbone (the
+//! shear table's arm over its first, stuck level's: `TangentialTable::arm_scale`), pressed
+//! with friction as the rigs are by default.
+//!
 //! `cargo run --release -p mechanics --example tilt_arms`
 
 use std::time::Instant;
@@ -31,15 +35,26 @@ fn contact(indenter: Indenter, h: f64, e: f64, width_mm: f64, length_mm: f64) ->
 }
 
 fn model(c: Contact, max_depth_mm: f64, cells_flat: usize) -> ContactModel {
+    model_pressed(c, max_depth_mm, cells_flat, 16, false)
+}
+
+fn model_pressed(
+    c: Contact,
+    max_depth_mm: f64,
+    cells_flat: usize,
+    cells_curved: usize,
+    pressing_friction: bool,
+) -> ContactModel {
     ContactModel::build(ModelSpec {
         contact: c,
         max_depth_mm,
         shear: true,
         twist: false,
         field_view_mm: None,
-        pressing_friction: false,
+        pressing_friction,
         quality: Quality {
             cells_flat,
+            cells_curved,
             ..Quality::default()
         },
     })
@@ -104,5 +119,102 @@ fn main() {
             32,
         );
         println!("{name:<30} {:>7.4}", m.tilt_arms_mm(0.5).0);
+    }
+    println!();
+    println!(
+        "under partial slip (pressed with friction): stuck arm (mm) → full-slip arm (mm), \
+         then per backbone point F/limit / stick fraction / progress to full slip"
+    );
+    for (name, c, d) in [
+        (
+            "box 9.5 mm at 0.4 mm",
+            contact(
+                Indenter::FlatCircle { diameter_mm: 9.5 },
+                4.2,
+                0.25,
+                125.0,
+                70.0,
+            ),
+            0.4,
+        ),
+        (
+            "box 12.68 mm at 0.4 mm",
+            contact(
+                Indenter::FlatCircle { diameter_mm: 12.68 },
+                4.2,
+                0.25,
+                125.0,
+                70.0,
+            ),
+            0.4,
+        ),
+        (
+            "portable 12.5 mm at 0.3 mm",
+            contact(
+                Indenter::FlatCircle { diameter_mm: 12.5 },
+                2.0,
+                0.15,
+                22.6,
+                23.4,
+            ),
+            0.3,
+        ),
+        ("box sphere at 1 mm", sphere(), 1.0),
+        ("box sphere at 2 mm", sphere(), 2.0),
+        ("can across the pad at 0.3 mm", can(), 0.3),
+    ] {
+        let t0 = Instant::now();
+        let mut m = model_pressed(c, 2.0, 32, 16, true);
+        let Some((b, stick)) = m.shear_curve(d) else {
+            continue;
+        };
+        let t1 = Instant::now();
+        let Some(slip) = m.shear_slip_tilt(d) else {
+            continue;
+        };
+        let (table_ms, ms) = (
+            (t1 - t0).as_secs_f64() * 1e3,
+            t1.elapsed().as_secs_f64() * 1e3,
+        );
+        let stuck = m.tilt_arms_mm(d).0;
+        let limit = b.limit();
+        let row: Vec<String> = (0..b.f.len())
+            .map(|k| {
+                format!(
+                    "{:.2}/{:.2}/{:.2}",
+                    b.f[k] / limit,
+                    stick[k],
+                    slip.progress[k]
+                )
+            })
+            .collect();
+        println!(
+            "{name:<30} {stuck:.4} → {:.4} ({:+.1} %), {ms:.0} ms (model and table \
+             {table_ms:.0} ms): {}",
+            slip.full_slip_arm_mm,
+            (slip.full_slip_arm_mm / stuck - 1.0) * 100.0,
+            row.join(" ")
+        );
+    }
+    println!();
+    println!(
+        "full-slip arm (mm) of the curved contacts by the tables' grid (cells across 1.2 \
+         contact diameters, `Quality::cells_curved`)"
+    );
+    for (name, c, d) in [
+        ("box sphere at 1 mm", sphere as fn() -> Contact, 1.0),
+        ("box sphere at 2 mm", sphere, 2.0),
+        ("can across the pad at 0.3 mm", can, 0.3),
+    ] {
+        for cells in [16usize, 24] {
+            let mut m = model_pressed(c(), 2.0, 32, cells, true);
+            let _ = m.shear_curve(d);
+            let t0 = Instant::now();
+            let full = m
+                .shear_slip_tilt(d)
+                .map_or(f64::NAN, |s| s.full_slip_arm_mm);
+            let ms = t0.elapsed().as_secs_f64() * 1e3;
+            println!("{name:<30} {cells:>3} cells  {full:.4}  {ms:.0} ms");
+        }
     }
 }

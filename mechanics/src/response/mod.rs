@@ -42,7 +42,7 @@ mod shapes;
 mod tangential;
 mod tilt;
 
-pub use tilt::tilting_moments_nmm;
+pub use tilt::{SlipTilt, tilt_arms_at, tilting_moments_nmm};
 
 use flat::flat_pressing;
 use shapes::{face_mask, matched_dx};
@@ -225,8 +225,9 @@ pub struct ContactModel {
     twist: BTreeMap<u64, Arc<TangentialTable>>,
     field_op: Option<Arc<LayerOperator>>,
     field_pressure: BTreeMap<u64, Vec<f64>>,
-    /// The pressed state's friction tractions (q_x, q_y) and their grid, by depth bucket
-    /// (a flat punch's at unit depth: key 0 on its table grid, `u64::MAX` on the field grid).
+    /// The pressed state's friction tractions (q_x, q_y) and their grid: a curved
+    /// indenter's by depth bucket, a flat punch's at unit depth on the field grid
+    /// (`u64::MAX`).
     pressing: BTreeMap<u64, Arc<PressingTractions>>,
     /// A curved indenter's pressed states with friction, by depth bucket.
     pressed: BTreeMap<u64, pressed::Pressed>,
@@ -235,6 +236,9 @@ pub struct ContactModel {
     flat_tilt_arms_mm: (f64, f64),
     /// A curved indenter's tilting-moment arms (mm) by depth bucket.
     tilt: BTreeMap<u64, (f64, f64)>,
+    /// How the shear's tilting arm moves under partial slip, by the shear tables' key:
+    /// solved where a run asks for the arms, not with every table (a grasp reads none).
+    slip_tilt: BTreeMap<u64, Arc<SlipTilt>>,
 }
 
 fn tol() -> Tolerance {
@@ -324,6 +328,7 @@ impl ContactModel {
             pressed: BTreeMap::new(),
             flat_tilt_arms_mm: (0.0, 0.0),
             tilt: BTreeMap::new(),
+            slip_tilt: BTreeMap::new(),
             spec: spec.clone(),
         };
         let extent = c.indenter.footprint_mm();
@@ -378,7 +383,6 @@ impl ContactModel {
             if spec.shear {
                 model.flat_tilt_arms_mm = tilt::flat_tilt_arms(&op, &mask);
             }
-            model.pressing.insert(0, Arc::new((s.t.qx, s.t.qy, grid)));
             model.normal = Normal::Flat {
                 grid,
                 mask,

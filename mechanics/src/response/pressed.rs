@@ -248,24 +248,20 @@ impl ContactModel {
             .collect()
     }
 
-    /// Friction tractions of the pressed state at `depth_mm`'s bucket (cached and shared;
-    /// a flat punch's at unit depth).
+    /// Friction tractions of a curved indenter's pressed state at `depth_mm`'s bucket
+    /// (cached and shared). A flat punch's field takes its pressed state from the field
+    /// grid's own (`u64::MAX` in the same map), never from here.
     pub(super) fn pressing_tractions(&mut self, depth_mm: f64) -> Arc<PressingTractions> {
         let h = self.spec.contact.layer.thickness_mm;
-        let flat = matches!(self.normal, Normal::Flat { .. });
-        let key = if flat { 0 } else { quantise(depth_mm, h) };
+        let key = quantise(depth_mm, h);
         if let Some(e) = self.pressing.get(&key) {
             return Arc::clone(e);
         }
-        let e = if !flat && self.curved_friction() {
+        let e = if self.curved_friction() {
             let s = self.pressed(key);
             (s.qx, s.qy, s.grid)
         } else {
-            let d = if flat {
-                1.0
-            } else {
-                (key as f64 / 200.0 * h).max(1e-4 * h)
-            };
+            let d = (key as f64 / 200.0 * h).max(1e-4 * h);
             let op = self.op_for(d);
             let p = self.pressure_on(&op, d);
             let g = op.grid();

@@ -335,6 +335,17 @@ fn a_sheared_sphere_tilts_forward_more_the_wider_its_contact() {
     );
     let (_, ty) = tilting_moments_nmm(deep, 1.0, 0.0);
     assert!(ty < 0.0, "leading side pressed harder: My {ty}");
+    // Sliding, the arm is larger (the example `tilt_arms`: +16 % at 1 mm, +18 % at 2 mm,
+    // pressed with friction), and the table's levels go there in order.
+    let slip = m.shear_slip_tilt(1.5).expect("shear built");
+    let grown = slip.full_slip_arm_mm / deep.0;
+    assert!(
+        grown > 1.05 && grown < 1.35,
+        "full slip {slip:?} vs stuck {deep:?}"
+    );
+    let w = &slip.progress;
+    assert!(w.windows(2).all(|v| v[1] >= v[0] - 0.01), "{w:?}");
+    assert_eq!(w.last().copied(), Some(1.0));
     // Cached per depth bucket: asked again, nothing is solved and the answer is the same.
     let solved = m.tilt.len();
     assert_eq!(m.tilt_arms_mm(1.5), deep);
@@ -415,4 +426,198 @@ fn a_fields_shear_tractions_carry_the_force_the_backbone_gives() {
             assert!(fy.abs() < 1e-6 * limit, "{fy}");
         }
     }
+}
+
+/// The 12.68 mm punch on the 4.2 mm box gel, pressed with friction, sheared.
+fn sheared_box_punch() -> ContactModel {
+    ContactModel::build(ModelSpec {
+        contact: contact(Indenter::FlatCircle { diameter_mm: 12.68 }, 4.2),
+        max_depth_mm: 1.0,
+        shear: true,
+        twist: false,
+        field_view_mm: None,
+        pressing_friction: true,
+        quality: Quality::default(),
+    })
+    .expect("builds")
+}
+
+/// ∫x Δp dA of a contact held at depth and level under tangential tractions (dqx, dqy),
+/// solved directly: the pressure change that cancels the normal displacement the tractions
+/// cause through the coupling on the contact (`mask`).
+fn held_moment_nmm(op: &LayerOperator, mask: &[bool], dqx: &[f64], dqy: &[f64]) -> f64 {
+    let g = op.grid();
+    let mut uz = vec![0.0; g.len()];
+    op.normal_from_tangential(dqx, dqy, &mut uz);
+    uz.iter_mut().for_each(|v| *v = -*v);
+    let tight = Tolerance {
+        rel: 1e-11,
+        max_iter: 6000,
+    };
+    let dp = crate::solve::normal_known_area(op, mask, &uz, tight).p;
+    dp.iter()
+        .enumerate()
+        .map(|(i, p)| p * g.xy(i).0)
+        .sum::<f64>()
+        * g.area()
+}
+
+#[test]
+fn the_tilt_functional_is_the_moment_of_a_held_contact() {
+    let mut m = sheared_box_punch();
+    let slip = m.shear_slip_tilt(0.4).expect("shear built");
+    let t = m
+        .shear
+        .get(&0)
+        .expect("a flat punch's shear table at unit depth");
+    let g = t.grid;
+    let c = &m.spec.contact;
+    let op = LayerOperator::new(
+        g,
+        4.2,
+        c.material.shear_modulus_mpa(),
+        c.material.poisson_ratio,
+    );
+    // The coupling's two directions are each other's transpose (so `tangential_from_normal`
+    // applies C_ztᵀ): ⟨v, C_zt q⟩ = ⟨C_tz v, q⟩ for unrelated smooth fields.
+    let f = |a: f64, b: f64, s: f64| -> Vec<f64> {
+        (0..g.len())
+            .map(|i| {
+                let (x, y) = g.xy(i);
+                (a * x + b * y + 0.3).sin() * (-(x * x + y * y) / s).exp()
+            })
+            .collect()
+    };
+    let (v, qx, qy) = (f(0.7, -0.3, 40.0), f(-0.2, 0.5, 25.0), f(0.4, 0.9, 60.0));
+    let mut uz = vec![0.0; g.len()];
+    op.normal_from_tangential(&qx, &qy, &mut uz);
+    let (mut sx, mut sy) = (vec![0.0; g.len()], vec![0.0; g.len()]);
+    op.tangential_from_normal(&v, &mut sx, &mut sy);
+    let lhs: f64 = v.iter().zip(&uz).map(|(a, b)| a * b).sum();
+    let rhs: f64 = (0..g.len()).map(|i| sx[i] * qx[i] + sy[i] * qy[i]).sum();
+    assert!((lhs / rhs - 1.0).abs() < 1e-9, "{lhs} vs {rhs}");
+
+    // Any level's moment: the functional's dot product against the direct solve.
+    let mask = face_mask(&c.indenter, g);
+    let (ox, oy) = tilt::tilt_functional(&op, &mask);
+    let moment = |dqx: &[f64], dqy: &[f64]| -> f64 {
+        (0..g.len()).map(|i| ox[i] * dqx[i] + oy[i] * dqy[i]).sum()
+    };
+    let delta = |k: usize| -> (Vec<f64>, Vec<f64>) {
+        let (qx, qy) = &t.tractions[k];
+        (
+            qx.iter().zip(&t.pressing.0).map(|(a, b)| a - b).collect(),
+            qy.iter().zip(&t.pressing.1).map(|(a, b)| a - b).collect(),
+        )
+    };
+    let n = t.tractions.len();
+    let force = |dqx: &[f64]| dqx.iter().sum::<f64>() * g.area();
+    let mut raw = Vec::new();
+    for k in [1, n / 2, n - 1] {
+        let (dqx, dqy) = delta(k);
+        let direct = held_moment_nmm(&op, &mask, &dqx, &dqy);
+        let fast = moment(&dqx, &dqy);
+        assert!(
+            (fast / direct - 1.0).abs() < 1e-5,
+            "level {k}: {fast} vs {direct}"
+        );
+        raw.push(direct / force(&dqx));
+    }
+    // The table's progress from stuck to full slip is those arms' change from the first
+    // level's over the last level's.
+    let w = &slip.progress;
+    assert!(
+        (w[n / 2] - (raw[1] - raw[0]) / (raw[2] - raw[0])).abs() < 1e-5,
+        "{w:?}"
+    );
+    assert_eq!((w[0], w[1]), (0.0, 0.0));
+    assert!((w[n - 1] - 1.0).abs() < 1e-12, "{w:?}");
+
+    // A coupled (full-stick) shift's tractions give the model's coupled arm: the
+    // functional holds whatever solver found Δq, so long as the contact holds.
+    let shift = |dx: f64| {
+        crate::pressing::pressing(&crate::pressing::Pressing {
+            op: &op,
+            mask: &mask,
+            uz: &vec![1.0; g.len()],
+            target: (&vec![dx; g.len()], &vec![0.0; g.len()]),
+            mu: 1e6,
+            tol: tol(),
+        })
+    };
+    let (s0, s1) = (shift(0.0), shift(1e-3));
+    let dqx: Vec<f64> = s1.t.qx.iter().zip(&s0.t.qx).map(|(a, b)| a - b).collect();
+    let dqy: Vec<f64> = s1.t.qy.iter().zip(&s0.t.qy).map(|(a, b)| a - b).collect();
+    let coupled = moment(&dqx, &dqy) / (s1.t.fx_n - s0.t.fx_n);
+    let (arm, _) = tilt::flat_tilt_arms(&op, &mask);
+    assert!((coupled / arm - 1.0).abs() < 2e-3, "{coupled} vs {arm}");
+
+    // Full slip, independently of the tangential solver's levels: the tractions μp along
+    // the shear less the pressed state's, their moment solved directly. The last level's
+    // arm is that one's to the slip direction's scatter (a cell's slip is not exactly along
+    // x where the coupling's outward flow adds to it).
+    let p = m.pressure_on(&op, 1.0);
+    let mu = c.material.friction;
+    let slid_x: Vec<f64> = (0..g.len()).map(|i| mu * p[i] - t.pressing.0[i]).collect();
+    let slid_y: Vec<f64> = t.pressing.1.iter().map(|v| -v).collect();
+    let one_way = held_moment_nmm(&op, &mask, &slid_x, &slid_y) / force(&slid_x);
+    assert!(
+        (raw[2] / one_way - 1.0).abs() < 0.02,
+        "{} vs {one_way}",
+        raw[2]
+    );
+    // With the pressure's feedback, the table's full-slip arm against the coupled solver
+    // (`crate::pressing`: Gauss–Seidel sweeps between the normal and the tangential
+    // problem) pressed and slid 10 linear slip displacements in one go: all of the contact
+    // slides, so the path does not matter, and the pressed state carries no moment.
+    let x_slide = 10.0 * t.backbone.slip_start();
+    let slid = crate::pressing::pressing(&crate::pressing::Pressing {
+        op: &op,
+        mask: &mask,
+        uz: &vec![1.0; g.len()],
+        target: (&vec![x_slide; g.len()], &vec![0.0; g.len()]),
+        mu,
+        tol: tol(),
+    });
+    assert!(slid.t.stick_fraction(&slid.p) < 1e-3, "slides");
+    let sliding_arm = slid
+        .p
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v * g.xy(i).0)
+        .sum::<f64>()
+        * g.area()
+        / slid.t.fx_n;
+    let full = slip.full_slip_arm_mm;
+    eprintln!(
+        "raw (one-way) arms: stuck {:.4}, half {:.4}, last {:.4}; μp one way {one_way:.4}; \
+         coupled: stuck {arm:.4}, full slip {full:.4} (sliding solver {sliding_arm:.4})",
+        raw[0], raw[1], raw[2]
+    );
+    assert!(
+        (full / sliding_arm - 1.0).abs() < 0.01,
+        "{full} vs {sliding_arm}"
+    );
+    // The curved contacts' route (the contact found again at each iteration, the coupling's
+    // displacement added to the surface) on this face: a surface flat on it and far above
+    // it elsewhere gives the face's arm.
+    let profile: Vec<f64> = mask.iter().map(|m| if *m { 0.0 } else { 1e3 }).collect();
+    let free = tilt::full_slip_arm(
+        &op,
+        &tilt::Face::Free {
+            profile: &profile,
+            depth_mm: 1.0,
+        },
+        &p,
+        mu,
+        &t.pressing,
+    );
+    assert!(
+        (free / full - 1.0).abs() < 2e-3,
+        "free-area route {free} vs {full}"
+    );
+    // Partial slip carries the pressure's tilt forward: the arm grows from 0.90 mm stuck to
+    // about 0.98 mm sliding, and along the way as the table's tractions do.
+    assert!(full > 1.05 * arm && full < 1.15 * arm, "{full} vs {arm}");
+    assert!(w.windows(2).all(|v| v[1] >= v[0] - 0.01), "{w:?}");
 }

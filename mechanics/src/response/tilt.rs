@@ -16,7 +16,9 @@
 use std::f64::consts::PI;
 
 use super::shapes::{face_mask, matched_dx};
-use super::{ContactModel, Normal, quantise};
+use std::sync::Arc;
+
+use super::{ContactModel, Kind, Normal, quantise};
 use crate::Indenter;
 use crate::operator::{Compliance, Grid, LayerOperator};
 #[cfg(test)]
@@ -24,6 +26,7 @@ use crate::pressing::curved::CurvedPath;
 use crate::pressing::{Pressing, PressingSolution, pressing};
 #[cfg(test)]
 use crate::solve::Tolerance;
+use crate::solve::{normal_known_area, normal_unknown_area};
 
 /// The shift whose response gives the arm, mm: small enough that nothing slips or leaves
 /// the contact, large enough against the solver's tolerance.
@@ -125,6 +128,223 @@ pub(super) fn free_area_tilt_arms(
     }
 }
 
+/// The tilt functional of a contact held at its depth and level, on `op`'s grid: the
+/// (ω_x, ω_y) with ∫x Δp dA = Σ ω_x Δq_x + ω_y Δq_y for any change Δq of the tangential
+/// tractions that keeps the contact (`contact`) where it is.
+///
+/// Held at its depth and level the contact's normal displacement cannot change, so
+/// A Δp + C_zt Δq = 0 on it and Δp = −A_c⁻¹ C_zt Δq; then ∫x Δp dA = −dA·wᵀ C_zt Δq with
+/// w = A_c⁻¹ x, the pressure of the face tilted by a unit rotation (A is symmetric). So
+/// ω = −dA·C_ztᵀ w: one normal solve, and the moment of any tractions is a dot product
+/// (Betti's reciprocity: the tilted face's pressure pushes the surface sideways through the
+/// coupling, and that sideways displacement weighs each traction's share of the moment).
+/// On the layer's operator C_ztᵀ = C_tz: the coupling kernels are odd in r and opposite in
+/// sign (unit-tested in `tests.rs`), so `tangential_from_normal` applies the transpose.
+pub(super) fn tilt_functional(op: &LayerOperator, contact: &[bool]) -> (Vec<f64>, Vec<f64>) {
+    let g = op.grid();
+    let x: Vec<f64> = (0..g.len()).map(|i| g.xy(i).0).collect();
+    let w = normal_known_area(op, contact, &x, super::tol()).p;
+    let (mut wx, mut wy) = (vec![0.0; g.len()], vec![0.0; g.len()]);
+    op.tangential_from_normal(&w, &mut wx, &mut wy);
+    let a = g.area();
+    wx.iter_mut().chain(wy.iter_mut()).for_each(|v| *v *= -a);
+    (wx, wy)
+}
+
+/// How a sheared contact's tilting arm moves from its stuck value to full slip.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SlipTilt {
+    /// The arm at full slip along x, mm: the sliding tractions μp along the shear with the
+    /// pressure's own feedback on them ([`full_slip_arm`]). NaN where it was not found.
+    pub full_slip_arm_mm: f64,
+    /// At each point of the shear backbone, how far the arm has gone from its stuck value
+    /// (0) to its full-slip one (1), shaped by the table's tractions ([`slip_tilt`]).
+    pub progress: Vec<f64>,
+}
+
+/// Fixed-point iterations allowed for [`full_slip_arm`] (the shipped contacts settle in
+/// 8–12).
+const FULL_SLIP_ITERATIONS: usize = 60;
+
+/// Where a sliding contact presses: a flat punch's face, or a curved indenter's surface
+/// (`profile`, mm above its lowest point, per cell) pressed `depth_mm`, whose contact may
+/// change as it slides.
+pub(super) enum Face<'a> {
+    /// The cells of a flat punch's face.
+    Fixed(&'a [bool]),
+    /// A curved surface and its depth.
+    Free {
+        /// Height above the lowest point, mm, per cell.
+        profile: &'a [f64],
+        /// Indentation depth, mm.
+        depth_mm: f64,
+    },
+}
+
+/// The tilting arm of a contact held at its depth and level and sliding along x, mm.
+///
+/// Sliding, the tractions are μp along x (the pressed state's, `pressing`, from which the
+/// moment is counted, are gone), and they push the surface in and out through the
+/// coupling, which the held contact answers with its pressure: A p + C_zt (μp, 0) = the
+/// face's displacement on the contact. Solved by fixed-point iteration on p from the
+/// pressed state `p0`: on a flat face Δp = p − p0 solves A_c Δp = −C_zt Δq on the face (a
+/// pressure turning tensile: NaN); on a curved surface the contact is found again each time
+/// (Polonsky–Keer with the coupling's displacement added to the surface: the trailing
+/// edge lets go where its pressure would turn tensile). NaN when it does not settle.
+pub(super) fn full_slip_arm(
+    op: &LayerOperator,
+    face: &Face<'_>,
+    p0: &[f64],
+    mu: f64,
+    pressing: &(Vec<f64>, Vec<f64>),
+) -> f64 {
+    let g = op.grid();
+    let a = g.area();
+    let first_moment = |p: &[f64]| -> f64 {
+        p.iter()
+            .enumerate()
+            .map(|(i, v)| v * g.xy(i).0)
+            .sum::<f64>()
+            * a
+    };
+    let (m0, f0) = (first_moment(p0), pressing.0.iter().sum::<f64>() * a);
+    let zero = vec![0.0; g.len()];
+    let minus_qy: Vec<f64> = pressing.1.iter().map(|v| -v).collect();
+    let mut p = p0.to_vec();
+    let mut uz = vec![0.0; g.len()];
+    let mut last = f64::NAN;
+    for _ in 0..FULL_SLIP_ITERATIONS {
+        let qx: Vec<f64> = p.iter().map(|v| mu * v.max(0.0)).collect();
+        p = match face {
+            Face::Fixed(contact) => {
+                let dqx: Vec<f64> = qx.iter().zip(&pressing.0).map(|(q, q0)| q - q0).collect();
+                op.normal_from_tangential(&dqx, &minus_qy, &mut uz);
+                uz.iter_mut().for_each(|v| *v = -*v);
+                let dp = normal_known_area(op, contact, &uz, super::tol()).p;
+                let p: Vec<f64> = p0.iter().zip(&dp).map(|(a, b)| a + b).collect();
+                if (0..g.len()).any(|i| contact[i] && p[i] < 0.0) {
+                    return f64::NAN;
+                }
+                p
+            }
+            Face::Free { profile, depth_mm } => {
+                op.normal_from_tangential(&qx, &zero, &mut uz);
+                let surface: Vec<f64> = profile.iter().zip(&uz).map(|(h, u)| h + u).collect();
+                normal_unknown_area(op, &surface, *depth_mm, Some(&p), super::tol()).p
+            }
+        };
+        let force = mu * p.iter().map(|v| v.max(0.0)).sum::<f64>() * a - f0;
+        let arm = (first_moment(&p) - m0) / force;
+        if !arm.is_finite() {
+            return f64::NAN;
+        }
+        if (arm - last).abs() <= 1e-6 * arm.abs() {
+            return arm;
+        }
+        last = arm;
+    }
+    f64::NAN
+}
+
+/// How partial slip moves a shear table's tilting arm ([`SlipTilt`]).
+///
+/// The arm of a level is ⟨ω, Δq⟩ / ΔF_x, with Δq its tractions less the pressed state's
+/// ([`tilt_functional`] on the contact where `p` > 0). The tables solve their tractions with
+/// the pressure held (one way), so these arms are not the coupled ones: on the box's
+/// 12.68 mm punch 0.863 mm stuck and 1.035 mm at full slip, where the coupled arms are 0.898
+/// (a 1 µm shift, [`flat_tilt_arms`]) and 0.976 mm ([`full_slip_arm`]; the sliding
+/// tractions μp without the pressure's feedback on them carry 1.018 mm). So the ends are the coupled arms and only the path between them is the
+/// tables': each level's progress is its arm's change from the first sheared level (still
+/// stuck, at a tenth of the linear slip displacement) over the full-slip level's, within
+/// [0, 1].
+pub(super) fn slip_tilt(
+    op: &LayerOperator,
+    face: &Face<'_>,
+    p: &[f64],
+    mu: f64,
+    pressing: &(Vec<f64>, Vec<f64>),
+    levels: &[(Vec<f64>, Vec<f64>)],
+) -> SlipTilt {
+    let contact: Vec<bool> = p.iter().map(|v| *v > 0.0).collect();
+    let (ox, oy) = tilt_functional(op, &contact);
+    let a = op.grid().area();
+    let raw: Vec<f64> = levels
+        .iter()
+        .map(|(qx, qy)| {
+            let (mut m, mut f) = (0.0, 0.0);
+            for i in 0..qx.len() {
+                let (dx, dy) = (qx[i] - pressing.0[i], qy[i] - pressing.1[i]);
+                m += ox[i] * dx + oy[i] * dy;
+                f += dx;
+            }
+            m / (f * a)
+        })
+        .collect();
+    let n = raw.len();
+    let (first, span) = match (raw.get(1), raw.last()) {
+        (Some(r1), Some(rl)) if n > 2 => (*r1, rl - r1),
+        _ => (f64::NAN, f64::NAN),
+    };
+    let progress = raw
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let w = (r - first) / span;
+            if k <= 1 || !w.is_finite() || span.abs() < 1e-9 * first.abs() {
+                0.0
+            } else {
+                // The levels near full slip overshoot the last by up to 2 % (their slip
+                // directions scatter about x): the arm goes no further than full slip's.
+                w.clamp(0.0, 1.0)
+            }
+        })
+        .collect();
+    SlipTilt {
+        full_slip_arm_mm: full_slip_arm(op, face, p, mu, pressing),
+        progress,
+    }
+}
+
+/// The tilting arms (mm) of a sheared contact whose elastic shear force is `elastic_n` on
+/// `backbone`: the full-stick arms `arms_mm`, the one along x moved toward `slip`'s
+/// full-slip arm by its progress at that force (interpolated between levels; a contact
+/// sliding in full slip is all the way there). The arm along y (a force across the shear
+/// stage: a disturbance) keeps its full-stick value: no table is solved across. On an
+/// unloading or reversed branch the force is looked up on the virgin backbone (the
+/// tractions of a Masing branch are not tabulated). Without a full-slip arm, the stuck one.
+pub fn tilt_arms_at(
+    arms_mm: (f64, f64),
+    backbone: &crate::friction::Backbone,
+    slip: &SlipTilt,
+    elastic_n: f64,
+    sliding: bool,
+) -> (f64, f64) {
+    let w = &slip.progress;
+    let n = backbone.f.len().min(w.len());
+    if n == 0 || !slip.full_slip_arm_mm.is_finite() {
+        return arms_mm;
+    }
+    let f = elastic_n.abs();
+    let at = if sliding || f >= backbone.f[n - 1] {
+        1.0
+    } else if n == 1 {
+        w[0]
+    } else {
+        let i = backbone.f[..n].partition_point(|v| *v <= f).clamp(1, n - 1);
+        let span = backbone.f[i] - backbone.f[i - 1];
+        let t = if span > 0.0 {
+            ((f - backbone.f[i - 1]) / span).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        w[i - 1] * (1.0 - t) + w[i] * t
+    };
+    (
+        arms_mm.0 + (slip.full_slip_arm_mm - arms_mm.0) * at,
+        arms_mm.1,
+    )
+}
+
 /// Largest grid side for a curved contact's footprint: a contact tiny against the layer
 /// would otherwise ask for thousands of cells to span 12 thicknesses; its arm is tiny too
 /// (a contact small against h sees a nearly incompressible half-space, which hardly couples).
@@ -174,6 +394,64 @@ impl ContactModel {
             ay += w * by;
         }
         (ax, ay)
+    }
+
+    /// How the shear's tilting arm moves from stuck to full slip at `depth_mm` ([`SlipTilt`]),
+    /// its progress one per point of [`Self::shear_curve`]'s backbone there (for
+    /// [`tilt_arms_at`]); `None` when shear was not built or out of contact. Solved from the
+    /// shear table of `depth_mm`'s bucket the first time it is asked for (a tilt functional
+    /// and 8–12 normal solves on the table's grid), and cached.
+    pub fn shear_slip_tilt(&mut self, depth_mm: f64) -> Option<Arc<SlipTilt>> {
+        let table = self.shared_table(depth_mm, Kind::Shear)?;
+        let h = self.spec.contact.layer.thickness_mm;
+        let key = if self.is_flat() {
+            0
+        } else {
+            quantise(depth_mm, h)
+        };
+        if let Some(s) = self.slip_tilt.get(&key) {
+            return Some(Arc::clone(s));
+        }
+        // The depth the table was solved at: a flat punch's at unit depth.
+        let d = if self.is_flat() {
+            1.0
+        } else {
+            (key as f64 / 200.0 * h).max(1e-4 * h)
+        };
+        let op = self.op_for(d);
+        let p = if self.curved_friction() {
+            self.pressed(key).p
+        } else {
+            self.pressure_on(&op, d)
+        };
+        let mu = self.spec.contact.material.friction;
+        let s = if op.grid() != table.grid || p.len() != table.grid.len() {
+            // Not the table's grid: nothing to take the path from.
+            SlipTilt {
+                full_slip_arm_mm: f64::NAN,
+                progress: Vec::new(),
+            }
+        } else if self.is_flat() {
+            let mask: Vec<bool> = p.iter().map(|v| *v > 0.0).collect();
+            slip_tilt(
+                &op,
+                &Face::Fixed(&mask),
+                &p,
+                mu,
+                &table.pressing,
+                &table.tractions,
+            )
+        } else {
+            let profile = self.profile_on(&op);
+            let face = Face::Free {
+                profile: &profile,
+                depth_mm: d,
+            };
+            slip_tilt(&op, &face, &p, mu, &table.pressing, &table.tractions)
+        };
+        let s = Arc::new(s);
+        self.slip_tilt.insert(key, Arc::clone(&s));
+        Some(s)
     }
 
     /// A curved contact's arms at `depth_mm` as those of a flat punch on its footprint: the

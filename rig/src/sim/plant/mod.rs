@@ -21,11 +21,12 @@ use std::collections::BTreeMap;
 
 use mechanics::contact::Contact;
 use mechanics::friction::{Backbone, FrictionElement};
-use mechanics::response::{ContactModel, ModelSpec, Quality, State};
+use mechanics::response::{ContactModel, ModelSpec, Quality, SlipTilt, State};
 use mechanics::unloading::TingContact;
 use mechanics::{Indenter, Prony, PronyState, PronyTerm};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
+use std::sync::Arc;
 
 use super::grasp::Grasp;
 use crate::RigError;
@@ -180,10 +181,29 @@ struct Channel {
     state: PronyState,
     origin: f64,
     last_pos: f64,
-    curve: Option<(f64, Backbone, Vec<f64>)>,
-    /// The contact's tilting-moment arms (mm) and the depth they were found at (shear
-    /// channel only).
-    tilt: Option<(f64, (f64, f64))>,
+    curve: Option<Curve>,
+    /// The contact's full-stick tilting-moment arms (mm), how partial slip moves them, and
+    /// the depth they were found at (shear channel only).
+    tilt: Option<Tilt>,
+}
+
+/// A tangential channel's backbone, solved at the depth it was asked for.
+#[derive(Debug)]
+struct Curve {
+    depth_mm: f64,
+    backbone: Backbone,
+    /// Stick fraction at each backbone point.
+    stick: Vec<f64>,
+}
+
+/// A shear channel's tilting arms at the depth they were solved for.
+#[derive(Debug)]
+struct Tilt {
+    depth_mm: f64,
+    /// Full-stick arms along x and y, mm.
+    arms_mm: (f64, f64),
+    /// How the arm along x moves under partial slip (`ContactModel::shear_slip_tilt`).
+    slip: Option<Arc<SlipTilt>>,
 }
 
 /// Largest integration step while anything moves, so depth-nonlinear laws stay accurate.
@@ -487,22 +507,21 @@ impl Plant {
 
     /// The backbone of a tangential channel at depth `d`, recomputed only when the depth
     /// changed.
-    fn curve(
-        model: &mut ContactModel,
-        shear: bool,
-        d: f64,
-        cached: &mut Option<(f64, Backbone, Vec<f64>)>,
-    ) {
+    fn curve(model: &mut ContactModel, shear: bool, d: f64, cached: &mut Option<Curve>) {
         let stale = cached
             .as_ref()
-            .is_none_or(|(cd, _, _)| (cd - d).abs() > 1e-9);
+            .is_none_or(|c| (c.depth_mm - d).abs() > 1e-9);
         if stale {
             let c = if shear {
                 model.shear_curve(d)
             } else {
                 model.twist_curve(d)
             };
-            *cached = c.map(|(b, s)| (d, b, s));
+            *cached = c.map(|(backbone, stick)| Curve {
+                depth_mm: d,
+                backbone,
+                stick,
+            });
         }
     }
 
@@ -578,10 +597,19 @@ impl Plant {
                 Self::curve(&mut self.model, is_shear, d_el, &mut ch.curve);
                 ch.last_pos = pos;
             }
-            if arms_wanted && ch.tilt.is_none_or(|(td, _)| (td - d_el).abs() > 1e-9) {
-                ch.tilt = Some((d_el, self.model.tilt_arms_mm(d_el)));
+            if arms_wanted
+                && ch
+                    .tilt
+                    .as_ref()
+                    .is_none_or(|t| (t.depth_mm - d_el).abs() > 1e-9)
+            {
+                ch.tilt = Some(Tilt {
+                    depth_mm: d_el,
+                    arms_mm: self.model.tilt_arms_mm(d_el),
+                    slip: self.model.shear_slip_tilt(d_el),
+                });
             }
-            let Some((_, backbone, _)) = ch.curve.as_ref() else {
+            let Some(Curve { backbone, .. }) = ch.curve.as_ref() else {
                 ch.state.advance_linear(&self.prony, dt_s, 0.0);
                 continue;
             };
@@ -621,14 +649,14 @@ impl Plant {
             .to_radians();
         let (mut slip_x, mut shear_n) = (0.0, 0.0);
         if let Some(c) = &self.shear
-            && let Some((_, b, _)) = &c.curve
+            && let Some(Curve { backbone: b, .. }) = &c.curve
         {
             shear_n = c.element.force();
             slip_x = (shear_pos - c.origin) - b.displacement_at(shear_n);
         }
         let (mut slip_theta, mut torque) = (0.0, 0.0);
         if let Some(c) = &self.twist
-            && let Some((_, b, _)) = &c.curve
+            && let Some(Curve { backbone: b, .. }) = &c.curve
         {
             torque = c.element.force();
             slip_theta = (twist_pos - c.origin) - b.displacement_at(torque);

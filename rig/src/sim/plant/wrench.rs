@@ -4,22 +4,40 @@
 
 use std::f64::consts::PI;
 
-use mechanics::response::tilting_moments_nmm;
+use mechanics::response::{tilt_arms_at, tilting_moments_nmm};
 use rand::Rng;
 use rand::rngs::StdRng;
 use rand_distr::StandardNormal;
 
-use super::{Channel, Plant};
+use super::{Channel, Curve, Plant};
 use crate::device::{ForceRange, STATUS_SATURATED, SimTruth, Wrench};
 
 impl Plant {
     /// The contact's tilting-moment arms (mm) where a tangential force last acted: zero
-    /// before one has and without a shear channel.
+    /// before one has and without a shear channel. The full-stick arms, the one along the
+    /// shear stage's axis moved toward its full-slip value as far as the shear's elastic
+    /// force has gone along its backbone (`tilt_arms_at`).
     fn tilt_arms_mm(&self) -> (f64, f64) {
-        self.shear
-            .as_ref()
-            .and_then(|c| c.tilt)
-            .map_or((0.0, 0.0), |(_, arms)| arms)
+        let Some(c) = self.shear.as_ref() else {
+            return (0.0, 0.0);
+        };
+        let Some(tilt) = c.tilt.as_ref() else {
+            return (0.0, 0.0);
+        };
+        // The progress is read along the backbone of the same depth (a disturbance alone
+        // may have moved the arms' depth, not the backbone's: no shear force acts then).
+        match (c.curve.as_ref(), tilt.slip.as_deref()) {
+            (Some(curve), Some(slip)) if (curve.depth_mm - tilt.depth_mm).abs() <= 1e-9 => {
+                tilt_arms_at(
+                    tilt.arms_mm,
+                    &curve.backbone,
+                    slip,
+                    c.element.force(),
+                    c.element.sliding(),
+                )
+            }
+            _ => tilt.arms_mm,
+        }
     }
 
     /// The true wrench at the plant's current time, before sensor effects.
@@ -67,7 +85,11 @@ impl Plant {
         let d = self.depth_at(t_ns);
         let stick = |c: &Option<Channel>| -> Option<f64> {
             let c = c.as_ref()?;
-            let (_, b, s) = c.curve.as_ref()?;
+            let Curve {
+                backbone: b,
+                stick: s,
+                ..
+            } = c.curve.as_ref()?;
             let x = b.displacement_at(c.element.force());
             let n = b.x.len();
             if n == 0 {

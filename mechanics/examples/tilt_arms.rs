@@ -4,9 +4,10 @@
 //! The arm is My = −arm·Fx: how far ahead of the contact's centre a stuck contact's shear
 //! moves its pressure through the layer's coupling.
 //!
-//! Then, under partial slip, how the arm changes along each contact's shear backbone (the
-//! shear table's arm over its first, stuck level's: `TangentialTable::arm_scale`), pressed
-//! with friction as the rigs are by default.
+//! Then, under partial slip, the full-slip arm each contact's arm moves toward, and how far
+//! it has gone at each point of the shear backbone (`ContactModel::shear_slip_tilt`), pressed
+//! with friction as the rigs are by default; and the curved contacts' full-slip arms on two
+//! grids, with the time `shear_slip_tilt` takes once the shear table exists.
 //!
 //! `cargo run --release -p mechanics --example tilt_arms`
 

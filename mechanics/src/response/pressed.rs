@@ -6,8 +6,10 @@
 //!
 //! Frictionless, a curved indenter's state is a function of its depth; with friction it is a
 //! function of the path, and the model follows the one path a pressing run takes: monotonic
-//! loading from first touch. Unloading (a receding contact releasing its stuck points) is
-//! not modelled: a retracting indenter is given the loading path's state at its depth.
+//! loading from first touch. A retracting indenter is given the loading path's state at its
+//! depth: the path backed off gives the same wherever loading did not slip, as the shipped
+//! contacts do not (`unloading_friction` example; BENCHMARKS.md, "Curved indenters pressed
+//! with friction").
 
 use std::sync::Arc;
 

@@ -335,8 +335,9 @@ fn a_sheared_sphere_tilts_forward_more_the_wider_its_contact() {
     );
     let (_, ty) = tilting_moments_nmm(deep, 1.0, 0.0);
     assert!(ty < 0.0, "leading side pressed harder: My {ty}");
-    // Sliding, the arm is larger (the example `tilt_arms`: +16 % at 1 mm, +18 % at 2 mm,
-    // pressed with friction), and the table's levels go there in order.
+    // Sliding, the arm is larger (this model is pressed frictionless; pressed with
+    // friction the example `tilt_arms` gives +16 % at 1 mm and +18 % at 2 mm), and the
+    // table's levels go there in order.
     let slip = m.shear_slip_tilt(1.5).expect("shear built");
     let grown = slip.full_slip_arm_mm / deep.0;
     assert!(
@@ -620,4 +621,41 @@ fn the_tilt_functional_is_the_moment_of_a_held_contact() {
     // about 0.98 mm sliding, and along the way as the table's tractions do.
     assert!(full > 1.05 * arm && full < 1.15 * arm, "{full} vs {arm}");
     assert!(w.windows(2).all(|v| v[1] >= v[0] - 0.01), "{w:?}");
+}
+
+#[test]
+fn the_arm_moves_toward_full_slip_as_far_as_the_force_has_gone_along_the_backbone() {
+    let backbone = crate::friction::Backbone {
+        x: vec![0.0, 1.0, 2.0, 3.0],
+        f: vec![0.0, 1.0, 2.0, 3.0],
+    };
+    let slip = SlipTilt {
+        full_slip_arm_mm: 1.4,
+        progress: vec![0.0, 0.0, 0.5, 1.0],
+    };
+    let stuck = (1.0, 2.0);
+    let at = |f: f64, sliding: bool| tilt_arms_at(stuck, &backbone, &slip, f, sliding);
+    assert_eq!(at(0.0, false), stuck);
+    assert_eq!(
+        at(0.5, false),
+        stuck,
+        "still stuck up to the first sheared level"
+    );
+    // Between levels 1 and 2: a quarter of the way to full slip, either sign of force; the
+    // arm across the stage keeps its full-stick value.
+    for f in [1.5, -1.5] {
+        let (ax, ay) = at(f, false);
+        assert!((ax - 1.1).abs() < 1e-12, "{ax}");
+        assert_eq!(ay, 2.0);
+    }
+    assert!((at(3.5, false).0 - 1.4).abs() < 1e-12, "past the limit");
+    assert!((at(0.5, true).0 - 1.4).abs() < 1e-12, "sliding: full slip");
+    // Without a full-slip arm or a progress, the full-stick arms.
+    let none = SlipTilt::default();
+    assert_eq!(tilt_arms_at(stuck, &backbone, &none, 2.5, true), stuck);
+    let nan = SlipTilt {
+        full_slip_arm_mm: f64::NAN,
+        ..slip.clone()
+    };
+    assert_eq!(tilt_arms_at(stuck, &backbone, &nan, 2.5, false), stuck);
 }

@@ -4,9 +4,10 @@
 //! down behind (the coupling C_zt of [`crate::greens`]). A stuck indenter held at its depth
 //! and level resists that, so the pressure rises on its leading side: the tractions on the
 //! gel carry a moment about the tangential axes, My = −arm·Fx and Mx = +arm·Fy (z into the
-//! gel), which a Nano17 under the indenter reads as Tx, Ty. The arms are the linear
-//! (full-stick) ones: a contact pressed without slip and shifted 1 µm, the change of the
-//! pressure's first moment over the change of the tangential force.
+//! gel), which a Nano17 under the indenter reads as Tx, Ty. The full-stick arms are the
+//! linear ones: a contact pressed without slip and shifted 1 µm, the change of the
+//! pressure's first moment over the change of the tangential force. Under partial slip the
+//! arm moves toward its full-slip value ([`SlipTilt`], [`tilt_arms_at`]).
 //!
 //! A flat punch's arm is one number (everything scales with depth). A curved indenter's
 //! grows with its contact: it is solved per depth bucket (0.5 % of the thickness) where a
@@ -15,9 +16,9 @@
 
 use std::f64::consts::PI;
 
-use super::shapes::{face_mask, matched_dx};
 use std::sync::Arc;
 
+use super::shapes::{face_mask, matched_dx};
 use super::{ContactModel, Kind, Normal, quantise};
 use crate::Indenter;
 use crate::operator::{Compliance, Grid, LayerOperator};
@@ -151,8 +152,9 @@ pub(super) fn tilt_functional(op: &LayerOperator, contact: &[bool]) -> (Vec<f64>
     (wx, wy)
 }
 
-/// How a sheared contact's tilting arm moves from its stuck value to full slip.
-#[derive(Debug, Clone, PartialEq, Default)]
+/// How a sheared contact's tilting arm moves from its stuck value to full slip. The default
+/// has no full-slip arm and no progress: the arm stays at its stuck value.
+#[derive(Debug, Clone, PartialEq)]
 pub struct SlipTilt {
     /// The arm at full slip along x, mm: the sliding tractions μp along the shear with the
     /// pressure's own feedback on them ([`full_slip_arm`]). NaN where it was not found.
@@ -160,6 +162,15 @@ pub struct SlipTilt {
     /// At each point of the shear backbone, how far the arm has gone from its stuck value
     /// (0) to its full-slip one (1), shaped by the table's tractions ([`slip_tilt`]).
     pub progress: Vec<f64>,
+}
+
+impl Default for SlipTilt {
+    fn default() -> Self {
+        Self {
+            full_slip_arm_mm: f64::NAN,
+            progress: Vec::new(),
+        }
+    }
 }
 
 /// Fixed-point iterations allowed for [`full_slip_arm`] (the shipped contacts settle in
@@ -230,7 +241,11 @@ pub(super) fn full_slip_arm(
             Face::Free { profile, depth_mm } => {
                 op.normal_from_tangential(&qx, &zero, &mut uz);
                 let surface: Vec<f64> = profile.iter().zip(&uz).map(|(h, u)| h + u).collect();
-                normal_unknown_area(op, &surface, *depth_mm, Some(&p), super::tol()).p
+                let n = normal_unknown_area(op, &surface, *depth_mm, Some(&p), super::tol());
+                if !n.converged {
+                    return f64::NAN;
+                }
+                n.p
             }
         };
         let force = mu * p.iter().map(|v| v.max(0.0)).sum::<f64>() * a - f0;
@@ -427,10 +442,7 @@ impl ContactModel {
         let mu = self.spec.contact.material.friction;
         let s = if op.grid() != table.grid || p.len() != table.grid.len() {
             // Not the table's grid: nothing to take the path from.
-            SlipTilt {
-                full_slip_arm_mm: f64::NAN,
-                progress: Vec::new(),
-            }
+            SlipTilt::default()
         } else if self.is_flat() {
             let mask: Vec<bool> = p.iter().map(|v| *v > 0.0).collect();
             slip_tilt(

@@ -182,8 +182,8 @@ struct Channel {
     origin: f64,
     last_pos: f64,
     curve: Option<Curve>,
-    /// The contact's full-stick tilting-moment arms (mm), how partial slip moves them, and
-    /// the depth they were found at (shear channel only).
+    /// The contact's full-stick tilting-moment arms (mm) and the depth they were found at
+    /// (shear channel only).
     tilt: Option<Tilt>,
 }
 
@@ -194,6 +194,9 @@ struct Curve {
     backbone: Backbone,
     /// Stick fraction at each backbone point.
     stick: Vec<f64>,
+    /// How a shear's tilting arm moves from stuck to full slip along this backbone
+    /// (`ContactModel::shear_slip_tilt`); none for twist or in a grasp.
+    slip_tilt: Option<Arc<SlipTilt>>,
 }
 
 /// A shear channel's tilting arms at the depth they were solved for.
@@ -202,8 +205,6 @@ struct Tilt {
     depth_mm: f64,
     /// Full-stick arms along x and y, mm.
     arms_mm: (f64, f64),
-    /// How the arm along x moves under partial slip (`ContactModel::shear_slip_tilt`).
-    slip: Option<Arc<SlipTilt>>,
 }
 
 /// Largest integration step while anything moves, so depth-nonlinear laws stay accurate.
@@ -506,8 +507,15 @@ impl Plant {
     }
 
     /// The backbone of a tangential channel at depth `d`, recomputed only when the depth
-    /// changed.
-    fn curve(model: &mut ContactModel, shear: bool, d: f64, cached: &mut Option<Curve>) {
+    /// changed, and for a shear whose tilt is read (`tilted`) how its arm moves along it
+    /// (solved with it, from the same table, so the two always match).
+    fn curve(
+        model: &mut ContactModel,
+        shear: bool,
+        tilted: bool,
+        d: f64,
+        cached: &mut Option<Curve>,
+    ) {
         let stale = cached
             .as_ref()
             .is_none_or(|c| (c.depth_mm - d).abs() > 1e-9);
@@ -517,10 +525,16 @@ impl Plant {
             } else {
                 model.twist_curve(d)
             };
+            let slip_tilt = if shear && tilted {
+                model.shear_slip_tilt(d)
+            } else {
+                None
+            };
             *cached = c.map(|(backbone, stick)| Curve {
                 depth_mm: d,
                 backbone,
                 stick,
+                slip_tilt,
             });
         }
     }
@@ -594,7 +608,7 @@ impl Plant {
             // sponge and reads no tilt: none are solved there.
             let arms_wanted = is_shear && !grasping && (pos != ch.last_pos || disturbed);
             if pos != ch.last_pos {
-                Self::curve(&mut self.model, is_shear, d_el, &mut ch.curve);
+                Self::curve(&mut self.model, is_shear, !grasping, d_el, &mut ch.curve);
                 ch.last_pos = pos;
             }
             if arms_wanted
@@ -606,7 +620,6 @@ impl Plant {
                 ch.tilt = Some(Tilt {
                     depth_mm: d_el,
                     arms_mm: self.model.tilt_arms_mm(d_el),
-                    slip: self.model.shear_slip_tilt(d_el),
                 });
             }
             let Some(Curve { backbone, .. }) = ch.curve.as_ref() else {

@@ -24,18 +24,22 @@ impl Plant {
         let Some(tilt) = c.tilt.as_ref() else {
             return (0.0, 0.0);
         };
-        // The progress is read along the backbone of the same depth (a disturbance alone
-        // may have moved the arms' depth, not the backbone's: no shear force acts then).
-        match (c.curve.as_ref(), tilt.slip.as_deref()) {
-            (Some(curve), Some(slip)) if (curve.depth_mm - tilt.depth_mm).abs() <= 1e-9 => {
-                tilt_arms_at(
-                    tilt.arms_mm,
-                    &curve.backbone,
-                    slip,
-                    c.element.force(),
-                    c.element.sliding(),
-                )
-            }
+        // Partial slip moves the arm along x as far as the shear's elastic force has gone
+        // along its backbone (the full-stick arms may be of a later depth, where a
+        // disturbance alone moved them: the backbone's own slip tilt is used).
+        match c.curve.as_ref().and_then(|curve| {
+            curve
+                .slip_tilt
+                .as_deref()
+                .map(|slip| (&curve.backbone, slip))
+        }) {
+            Some((backbone, slip)) => tilt_arms_at(
+                tilt.arms_mm,
+                backbone,
+                slip,
+                c.element.force(),
+                c.element.sliding(),
+            ),
             _ => tilt.arms_mm,
         }
     }

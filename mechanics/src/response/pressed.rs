@@ -7,9 +7,9 @@
 //! Frictionless, a curved indenter's state is a function of its depth; with friction it is a
 //! function of the path, and the model follows the one path a pressing run takes: monotonic
 //! loading from first touch. A retracting indenter is given the loading path's state at its
-//! depth: the path backed off gives the same wherever loading did not slip, as the shipped
-//! contacts do not (`unloading_friction` example; BENCHMARKS.md, "Curved indenters pressed
-//! with friction").
+//! depth: backed off along the normal, the path itself gives the same to the solver's floor
+//! for the shipped contacts, whose only slip is a thin rim as it is caught
+//! (`unloading_friction` example; BENCHMARKS.md, "Curved indenters pressed with friction").
 
 use std::sync::Arc;
 

@@ -652,6 +652,7 @@ fn the_arm_moves_toward_full_slip_as_far_as_the_force_has_gone_along_the_backbon
     assert!((at(0.5, true).0 - 1.4).abs() < 1e-12, "sliding: full slip");
     // Without a full-slip arm or a progress, the full-stick arms.
     let none = SlipTilt::default();
+    assert!(none.full_slip_arm_mm.is_nan() && none.progress.is_empty());
     assert_eq!(tilt_arms_at(stuck, &backbone, &none, 2.5, true), stuck);
     let nan = SlipTilt {
         full_slip_arm_mm: f64::NAN,

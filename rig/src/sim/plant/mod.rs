@@ -194,9 +194,10 @@ struct Curve {
     backbone: Backbone,
     /// Stick fraction at each backbone point.
     stick: Vec<f64>,
-    /// How a shear's tilting arm moves from stuck to full slip along this backbone
-    /// (`ContactModel::shear_slip_tilt`); none for twist or in a grasp.
-    slip_tilt: Option<Arc<SlipTilt>>,
+    /// A shear's full-stick tilting arm along x at this depth, mm, and how it moves toward
+    /// full slip along this backbone (`ContactModel::shear_slip_tilt`); none for twist or
+    /// in a grasp.
+    slip_tilt: Option<(f64, Arc<SlipTilt>)>,
 }
 
 /// A shear channel's tilting arms at the depth they were solved for.
@@ -526,7 +527,9 @@ impl Plant {
                 model.twist_curve(d)
             };
             let slip_tilt = if shear && tilted {
-                model.shear_slip_tilt(d)
+                model
+                    .shear_slip_tilt(d)
+                    .map(|s| (model.tilt_arms_mm(d).0, s))
             } else {
                 None
             };
@@ -589,7 +592,8 @@ impl Plant {
         let disturbed = self
             .disturbance
             .is_some_and(|dist| dist.t0_ns < t1_ns && dist.t1_ns > t0_ns);
-        let grasping = self.grasp.is_some();
+        // A grasp trial's, from its spec: its grasp state starts only at first contact.
+        let grasping = self.spec.object_mass_g.is_some();
         let shear_moving = self.moving(AxisRole::Shear, t1_ns);
         let twist_moving = self.moving(AxisRole::Rotation, t1_ns);
         for (channel, pos, moving, is_shear) in [

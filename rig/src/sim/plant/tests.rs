@@ -189,7 +189,7 @@ fn shear_sticks_partially_slips_then_slides_with_a_drop() {
     );
     let (stuck_arm, peak_arm) = (arms[0], before[before.len() - 1]);
     assert!(
-        full > 1.02 * stuck_arm && peak_arm > 1.02 * stuck_arm && peak_arm <= full,
+        full > 1.03 * stuck_arm && peak_arm > 1.03 * stuck_arm && peak_arm <= full,
         "stuck {stuck_arm}, full slip {full}: {arms:?}"
     );
     // Slid and stopped, the contact holds the kinetic force, high on the backbone: the arm

@@ -25,16 +25,17 @@ impl Plant {
             return (0.0, 0.0);
         };
         // Partial slip moves the arm along x as far as the shear's elastic force has gone
-        // along its backbone (the full-stick arms may be of a later depth, where a
-        // disturbance alone moved them: the backbone's own slip tilt is used).
+        // along its backbone, from that backbone's own full-stick arm (a disturbance alone
+        // may have moved `tilt` to another depth since; the force still follows the
+        // backbone of the depth the stage last moved at).
         match c.curve.as_ref().and_then(|curve| {
             curve
                 .slip_tilt
-                .as_deref()
-                .map(|slip| (&curve.backbone, slip))
+                .as_ref()
+                .map(|(stuck_x, slip)| (&curve.backbone, *stuck_x, slip))
         }) {
-            Some((backbone, slip)) => tilt_arms_at(
-                tilt.arms_mm,
+            Some((backbone, stuck_x, slip)) => tilt_arms_at(
+                (stuck_x, tilt.arms_mm.1),
                 backbone,
                 slip,
                 c.element.force(),

@@ -594,3 +594,143 @@ fn write_png(path: &Path, (w, h): (u32, u32), px: impl Fn(u32, u32) -> [u8; 3]) 
         .save(path)
         .unwrap();
 }
+
+/// Writes `motion`'s frames of `scene` as PNG files (frame 0, the reference, first) and
+/// returns their paths and every frame's exact marker centres.
+fn write_scene(
+    dir: &Path,
+    scene: &rig::sim::Scene,
+    motion: &rig::sim::Motion,
+) -> (Vec<PathBuf>, Vec<Vec<[f64; 2]>>) {
+    let look = rig::sim::Look::default();
+    let (w, h) = scene.size();
+    let (mut paths, mut truth) = (Vec::new(), Vec::new());
+    for k in 0..motion.frames() {
+        let (rgb, centres) = scene.frame(motion, k, &look);
+        let p = dir.join(format!("frame_{k:04}.png"));
+        image::RgbImage::from_raw(w, h, rgb)
+            .unwrap()
+            .save(&p)
+            .unwrap();
+        paths.push(p);
+        truth.push(centres);
+    }
+    (paths, truth)
+}
+
+/// Tracks `paths` (the first is the reference) and returns the command's output and the
+/// rows of `markers.csv` scored against `truth`: (measured rows, of them wrong by a
+/// spacing's third or more, frames with a row).
+fn track_scene(
+    dir: &Path,
+    paths: &[PathBuf],
+    truth: &[Vec<[f64; 2]>],
+) -> (Output, usize, usize, usize) {
+    let out = dir.join("markers.csv");
+    let mut args: Vec<&std::ffi::OsStr> = vec!["--reference".as_ref(), paths[0].as_os_str()];
+    args.extend(paths[1..].iter().map(|p| p.as_os_str()));
+    args.extend(["--out".as_ref(), out.as_os_str(), "--no-contact".as_ref()]);
+    let o = track(&args);
+    if !o.status.success() {
+        return (o, 0, 0, 0);
+    }
+    let rows = csv_rows(&out);
+    let xy = |r: &std::collections::BTreeMap<String, String>| -> [f64; 2] {
+        [r["x_px"].parse().unwrap(), r["y_px"].parse().unwrap()]
+    };
+    // Marker id → printed marker, by the nearest centre on the reference frame.
+    let reference: std::collections::BTreeMap<usize, [f64; 2]> = rows
+        .iter()
+        .filter(|r| r["frame"] == "0")
+        .map(|r| (r["id"].parse().unwrap(), xy(r)))
+        .collect();
+    let printed = |p: [f64; 2]| {
+        (0..truth[0].len())
+            .min_by(|&a, &b| {
+                let da = (truth[0][a][0] - p[0]).hypot(truth[0][a][1] - p[1]);
+                let db = (truth[0][b][0] - p[0]).hypot(truth[0][b][1] - p[1]);
+                da.total_cmp(&db)
+            })
+            .unwrap()
+    };
+    let ids: std::collections::BTreeMap<usize, usize> =
+        reference.iter().map(|(&id, &p)| (id, printed(p))).collect();
+    let (mut measured, mut wrong) = (0, 0);
+    let mut frames = std::collections::BTreeSet::new();
+    for r in &rows {
+        let frame: usize = r["frame"].parse().unwrap();
+        frames.insert(frame);
+        if !matches!(r["state"].as_str(), "tracked" | "border" | "merged") || frame == 0 {
+            continue;
+        }
+        measured += 1;
+        let t = truth[frame][ids[&r["id"].parse::<usize>().unwrap()]];
+        let p = xy(r);
+        if (p[0] - t[0]).hypot(p[1] - t[1]) > 10.0 {
+            wrong += 1;
+        }
+    }
+    (o, measured, wrong, frames.len())
+}
+
+#[test]
+fn a_whole_spacing_jump_or_an_ambiguous_pan_is_a_frame_not_a_failure() {
+    use rig::sim::{MarkerLayout, Motion, Scene};
+    let grid = MarkerLayout::Grid {
+        columns: 18,
+        rows: 16,
+        spacing_mm: 2.52,
+        diameter_mm: 1.4,
+    };
+    let triangles = MarkerLayout::Random {
+        spacing_mm: 2.0,
+        size_mm: 0.7,
+    };
+    // The box grid one spacing larger than the view (its edges in view), 30 px apart, and
+    // three spacings larger (a jump of one spacing along a row is then the same image: no
+    // tracker can see it, but the command must go on); random triangles jumping two
+    // spacings; the larger grid panned half a spacing per frame along a column and back.
+    let edged = Scene::new(&grid, (45.36, 40.32), (640, 480), 1);
+    let wide = Scene::new(&grid, (45.36, 40.32), (640, 480), 3);
+    let dense = Scene::new(&triangles, (46.0, 36.0), (640, 480), 0);
+    let (s, t) = (wide.spacing_px(), dense.spacing_px());
+    let jump = |by: [f64; 2]| Motion::Jump { by_px: by, hold: 3 };
+    let mut pan: Vec<[f64; 2]> = vec![[0.0, 0.5 * s]; 3];
+    pan.extend([[0.0, -0.5 * s]; 3]);
+    // (name, scene, motion, every measured row must be right)
+    let cases = [
+        ("grid jump, edges in view", &edged, jump([s, 0.0]), true),
+        ("grid jump, the same image", &wide, jump([s, 0.0]), false),
+        ("grid pan", &wide, Motion::from_steps(&pan), true),
+        ("triangles jump", &dense, jump([1.6 * t, 1.2 * t]), true),
+    ];
+    for (name, scene, motion, right) in &cases {
+        let tmp = tempfile::tempdir().unwrap();
+        let (paths, truth) = write_scene(tmp.path(), scene, motion);
+        let (o, measured, wrong, frames) = track_scene(tmp.path(), &paths, &truth);
+        let (stdout, stderr) = text(&o);
+        assert!(o.status.success(), "{name}: {stderr}");
+        assert_eq!(frames, paths.len(), "{name}: every frame has its rows");
+        if *right {
+            assert_eq!(
+                wrong, 0,
+                "{name}: {wrong} of {measured} measured rows wrong"
+            );
+        }
+        if *name == "grid pan" {
+            assert!(stdout.contains("frame(s) ambiguous"), "{name}: {stdout}");
+        }
+        if name.starts_with("triangles") || name.ends_with("edges in view") {
+            // The frames tell the jump: every frame after it is measured.
+            let visible: usize = truth[1..]
+                .iter()
+                .flatten()
+                .filter(|p| p[0] > 12.0 && p[1] > 12.0 && p[0] < 627.0 && p[1] < 467.0)
+                .count();
+            assert!(
+                measured as f64 >= 0.95 * visible as f64,
+                "{name}: {measured} rows measured of {visible} markers in view"
+            );
+        }
+    }
+}

@@ -29,6 +29,7 @@
 
 mod contact;
 mod detect;
+mod frame_check;
 pub mod lattice;
 pub mod lk;
 mod outline;
@@ -37,6 +38,7 @@ mod tracker;
 
 pub use contact::{ContactFinder, ContactParams, ContactRegion};
 pub use detect::{Blob, Detector};
+pub use frame_check::{FrameCheck, MIN_PLACED_FRACTION};
 pub use reference::{Reference, ReferenceMarker};
 pub use tracker::{MarkerState, Tracker};
 

@@ -63,11 +63,21 @@ impl Condition {
         }
     }
 
-    /// The portable sensor's triangles at 640×480.
+    /// The portable sensor's triangles at 640×480 (about 70 in view, 64 px apart).
     pub(crate) fn triangles(name: impl Into<String>, overscan: u32) -> Self {
+        Self::triangles_over(name, (20.0, 15.0), overscan)
+    }
+
+    /// Random triangles 2 mm apart seen over `view_mm` at 640×480 ((40, 30): about 300 in
+    /// view, 32 px apart, as dense as the box grid).
+    pub(crate) fn triangles_over(
+        name: impl Into<String>,
+        view_mm: (f64, f64),
+        overscan: u32,
+    ) -> Self {
         Self {
             name: name.into(),
-            scene: Scene::new(&triangles(), (20.0, 15.0), (640, 480), overscan),
+            scene: Scene::new(&triangles(), view_mm, (640, 480), overscan),
             motion: Motion::Rest { frames: 1 },
             look: Look::default(),
             reference_look: Look::default(),
@@ -87,6 +97,13 @@ impl Condition {
             exposure: 1.0,
             ..look
         };
+        self
+    }
+
+    /// With this noise seed.
+    pub(crate) fn seeded(mut self, seed: u64) -> Self {
+        self.look.seed = seed;
+        self.reference_look.seed = seed.wrapping_add(1);
         self
     }
 
@@ -390,5 +407,177 @@ pub(crate) fn conditions() -> Vec<Condition> {
                 ..Look::default()
             }),
     );
+    out
+}
+
+/// Steps of `f` spacings per frame along `deg`, `n` frames out and `n` back (ends at rest).
+fn out_and_back(s: &Scene, deg: f64, f: f64, n: usize) -> Motion {
+    let d = dir(deg);
+    let step = [f * s.spacing_px() * d[0], f * s.spacing_px() * d[1]];
+    let back = [-step[0], -step[1]];
+    let steps: Vec<[f64; 2]> = std::iter::repeat_n(step, n)
+        .chain(std::iter::repeat_n(back, n))
+        .collect();
+    Motion::from_steps(&steps)
+}
+
+/// Steps of the given sizes (spacings per frame, signed) along `deg`.
+fn along(s: &Scene, deg: f64, sizes: &[f64]) -> Motion {
+    let d = dir(deg);
+    let k = s.spacing_px();
+    let steps: Vec<[f64; 2]> = sizes.iter().map(|f| [f * k * d[0], f * k * d[1]]).collect();
+    Motion::from_steps(&steps)
+}
+
+/// Which sensor a coming-back condition uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Pattern {
+    /// The box grid, three spacings of markers beyond the view on every side.
+    Grid,
+    /// Random triangles as dense as the grid (about 300 in view), beyond the view too.
+    Triangles,
+}
+
+impl Pattern {
+    fn condition(self, name: String, seed: u64) -> Condition {
+        match self {
+            Self::Grid => Condition::grid(name, (640, 480), 3),
+            Self::Triangles => Condition::triangles_over(name, (40.0, 30.0), 3),
+        }
+        .seeded(seed)
+    }
+
+    fn label(self) -> &'static str {
+        match self {
+            Self::Grid => "grid",
+            Self::Triangles => "triangles",
+        }
+    }
+}
+
+/// Pans that come back, reversals, accelerations and whole-spacing jumps — the motions of
+/// a grasp that lifts and lowers — with markers leaving and entering the view. The `seed`
+/// picks the directions (one along a lattice axis, where a pan of half a spacing per frame
+/// is exactly ambiguous, and two at random) and the sensor noise: thresholds are tuned on
+/// seed 1 and reported and tested on seeds 2 and 3.
+pub(crate) fn coming_back(pattern: Pattern, seed: u64) -> Vec<Condition> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0xC0_11EB ^ seed);
+    let axis = 90.0 * (seed % 4) as f64;
+    let dirs = [
+        axis,
+        rng.random_range(0.0..360.0),
+        rng.random_range(0.0..360.0),
+    ];
+    let p = pattern.label();
+    let mut out = Vec::new();
+    for (k, &deg) in dirs.iter().enumerate() {
+        let noise = seed.wrapping_mul(1000).wrapping_add(k as u64);
+        for f in [0.1f64, 0.2, 0.3, 0.4, 0.5] {
+            // Out to about 1.6 spacings and back.
+            let n = (1.6 / f).round() as usize;
+            out.push(
+                pattern
+                    .condition(
+                        format!("{p}: pan {f}/frame at {deg:.0}° out and back"),
+                        noise,
+                    )
+                    .moving(|s| out_and_back(s, deg, f, n)),
+            );
+        }
+        out.push(
+            pattern
+                .condition(
+                    format!("{p}: reversals mid-pan 0.3/frame at {deg:.0}°"),
+                    noise,
+                )
+                .moving(|s| {
+                    let sizes: Vec<f64> = [(0.3, 5), (-0.3, 3), (0.3, 4), (-0.3, 6)]
+                        .iter()
+                        .flat_map(|&(f, n)| std::iter::repeat_n(f, n))
+                        .collect();
+                    along(s, deg, &sizes)
+                }),
+        );
+        out.push(
+            pattern
+                .condition(
+                    format!("{p}: acceleration 0.1→0.4/frame at {deg:.0}°"),
+                    noise,
+                )
+                .moving(|s| along(s, deg, &[0.1, 0.2, 0.3, 0.4, -0.4, -0.3, -0.2, -0.1])),
+        );
+    }
+    out
+}
+
+/// What a whole-spacing jump leaves in the frames for a tracker to see.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Seen {
+    /// Only the true placement explains the frames (random triangles, or a grid whose edge
+    /// is in view): the jump must be tracked.
+    Decidable,
+    /// The frame after the jump is the same image as the one before it (a grid larger than
+    /// the view by more than the jump): no tracker can see the jump.
+    SameImage,
+    /// The frames differ, but a smaller jump explains every frame since the reference as
+    /// well (a grid one column larger than the view, jumping two): the smaller is taken,
+    /// as the rule says.
+    SmallerAlias,
+}
+
+/// Whole-spacing jumps of 1.0 and 2.0 spacings from rest, held three frames, then back.
+/// Grids jump along a lattice axis (the jump is a lattice vector; the seed picks which),
+/// over the box grid three spacings larger than the view (whose lattice ends 1.3 spacings
+/// beyond the view in x and 3 in y) and over the box grid one spacing larger, whose edges
+/// are in view; triangles jump in a direction the seed picks.
+pub(crate) fn jumps(pattern: Pattern, seed: u64) -> Vec<(Condition, Seen)> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0x1E_A9 ^ seed);
+    let mut out = Vec::new();
+    for by in [1.0f64, 2.0] {
+        let deg = match pattern {
+            Pattern::Grid => 90.0 * (seed % 4) as f64,
+            Pattern::Triangles => rng.random_range(0.0..360.0),
+        };
+        let seen = match pattern {
+            Pattern::Triangles => Seen::Decidable,
+            // Along y, three rows beyond the view hide jumps of one and two rows.
+            Pattern::Grid if seed % 2 == 1 || by < 2.0 => Seen::SameImage,
+            Pattern::Grid => Seen::SmallerAlias,
+        };
+        let c = pattern
+            .condition(
+                format!(
+                    "{p}: jump of {by} spacing at {deg:.0}°",
+                    p = pattern.label()
+                ),
+                seed,
+            )
+            .moving(|s| {
+                let d = dir(deg);
+                Motion::Jump {
+                    by_px: [by * s.spacing_px() * d[0], by * s.spacing_px() * d[1]],
+                    hold: 3,
+                }
+            });
+        out.push((c, seen));
+    }
+    if pattern == Pattern::Grid {
+        for by in [1.0, 2.0] {
+            let deg = 180.0 * (seed % 2) as f64;
+            let c = Condition::grid(
+                format!("grid, edges in view: jump of {by} spacing at {deg:.0}°"),
+                (640, 480),
+                1,
+            )
+            .seeded(seed)
+            .moving(|s| Motion::Jump {
+                by_px: [by * s.spacing_px() * dir(deg)[0], 0.0],
+                hold: 3,
+            });
+            out.push((c, Seen::Decidable));
+        }
+    }
     out
 }

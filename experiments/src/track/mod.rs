@@ -13,7 +13,9 @@ use std::time::Instant;
 
 use analysis::field::MarkerField;
 use analysis::field::decompose;
-use analysis::tracking::{MarkerState, Method, Pipeline, RgbView, TrackError, TrackParams};
+use analysis::tracking::{
+    FrameCheck, MarkerState, Method, Pipeline, RgbView, TrackError, TrackParams,
+};
 use serde::Serialize;
 
 mod decode;
@@ -122,8 +124,12 @@ pub struct Summary {
     pub wall_s: f64,
     /// The lattice fitted on a reference-free start.
     pub lattice: Option<analysis::tracking::lattice::Lattice>,
-    /// What the user should know about the input (the reference also among the frames).
+    /// What the user should know about the input (the reference also among the frames,
+    /// dark frames).
     pub warnings: Vec<String>,
+    /// Frames whose identities were withheld because two placements of the markers
+    /// explained them (and every frame since the last certain one) equally well.
+    pub ambiguous_frames: usize,
 }
 
 /// Why tracking stopped. `markers.csv` keeps every frame tracked before the failure.
@@ -175,21 +181,13 @@ pub enum TrackFailure {
         /// What is missing, and the fix.
         detail: String,
     },
-    /// A frame's markers do not match the reference's layout: another gel, view or camera.
-    #[error(
-        "frame {path}: only {tracked} of the reference's {markers} markers could be matched \
-         (fewer than {min_pct} %): the frame does not show the gel of the reference; fix: track \
-         frames of the same sensor and camera as the reference"
-    )]
+    /// A frame shows another gel or camera than the reference ([`FrameCheck`]).
+    #[error("frame {path} does not show the gel of the reference: {what}")]
     Mismatch {
         /// The frame file.
         path: PathBuf,
-        /// Markers matched.
-        tracked: usize,
-        /// Markers of the reference.
-        markers: usize,
-        /// The least share accepted, %.
-        min_pct: u32,
+        /// What it shows instead, and the fix.
+        what: String,
     },
     /// An output could not be written.
     #[error("cannot write {path}: {detail}; fix: check that the folder exists and is writable")]
@@ -223,9 +221,6 @@ struct MarkerRow<'a> {
     /// Confidence in the identity, 0–1 (0 when not measured).
     confidence: f64,
 }
-
-/// Least share of the reference's markers, %, a frame must match to be tracked at all.
-const MIN_MATCHED_PCT: u32 = 25;
 
 /// One row of `contact.csv` (empty centroid and mm columns where unknown).
 #[derive(Debug, Serialize)]
@@ -273,7 +268,7 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
     // reads like a gel that never moved.
     let canonical = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
     let reference_canonical = canonical(&reference_path);
-    let warnings: Vec<String> = if matches!(input, Input::Files { .. }) {
+    let mut warnings: Vec<String> = if matches!(input, Input::Files { .. }) {
         frames
             .iter()
             .filter(|(_, p)| canonical(p) == reference_canonical)
@@ -361,6 +356,7 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
 
     let mut counts: HashMap<&'static str, usize> = HashMap::new();
     let mut times = Vec::with_capacity(frames.len());
+    let (mut few_blob_frames, mut ambiguous_frames) = (Vec::new(), 0usize);
     let (mut largest, mut sq, mut worst, mut compared) = (None::<(u64, f64)>, 0.0, 0.0f64, 0);
     let (mut contact_frames, mut largest_contact) = (0, None::<(u64, f64)>);
     let mut write_frame = |frame: u64,
@@ -424,23 +420,20 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         let t0 = Instant::now();
         pipeline.track(view).map_err(frame_err)?;
         times.push(t0.elapsed().as_secs_f64() * 1e3);
-        // A frame of another gel or camera matches almost none of the reference's markers
-        // (3 % in the test of a portable frame against a box reference); a pressed gel keeps
-        // most (74 % at the real Mini sequence's deepest frame).
-        let markers = pipeline.tracker().len();
-        let tracked = pipeline
-            .tracker()
-            .states()
-            .iter()
-            .filter(|s| **s == MarkerState::Tracked)
-            .count();
-        if markers > 0 && (tracked as f64) < MIN_MATCHED_PCT as f64 / 100.0 * markers as f64 {
-            return Err(TrackFailure::Mismatch {
-                path,
-                tracked,
-                markers,
-                min_pct: MIN_MATCHED_PCT,
-            });
+        // A frame of another gel or camera stops the command; a dark frame or one whose
+        // identities the lattice leaves ambiguous does not (the frames after it are good).
+        match pipeline.check_frame() {
+            FrameCheck::SameGel => {}
+            FrameCheck::FewBlobs { .. } => few_blob_frames.push(frame),
+            other => {
+                return Err(TrackFailure::Mismatch {
+                    path,
+                    what: other.describe(),
+                });
+            }
+        }
+        if !pipeline.tracker().aliases_px().is_empty() {
+            ambiguous_frames += 1;
         }
         write_frame(frame, &shown(&path), &pipeline, &mut counts, true)?;
         if let Some(f) = field.as_mut() {
@@ -478,7 +471,15 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         }
     }
     times.sort_by(f64::total_cmp);
+    if let (Some(first), Some(last)) = (few_blob_frames.first(), few_blob_frames.last()) {
+        warnings.push(format!(
+            "{} frame(s) showed almost no markers (frames {first}–{last}): the camera was dark, \
+             covered or out of focus there; their rows are predicted, lost or out of view",
+            few_blob_frames.len()
+        ));
+    }
     Ok(Summary {
+        ambiguous_frames,
         frames: frame_count + usize::from(reference_frame_no.is_some()),
         markers: pipeline.tracker().len(),
         spacing_px: pipeline.reference().spacing_px(),

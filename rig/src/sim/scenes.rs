@@ -168,7 +168,7 @@ impl Default for Look {
 }
 
 /// How the gel moves, frame by frame; frame 0 is always at rest (the reference).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Motion {
     /// Nothing moves.
     Rest {
@@ -205,6 +205,12 @@ pub enum Motion {
         /// Frames held.
         hold: usize,
     },
+    /// The whole gel translates along a path: frame `k` ≥ 1 is at `offsets_px[k − 1]` from
+    /// rest (reversals mid-pan, accelerations, jumps of any size).
+    Path {
+        /// Offset from rest of frames 1, 2, …, px.
+        offsets_px: Vec<[f64; 2]>,
+    },
     /// The whole view turns by `rad_per_frame` about `centre_px` for `frames` frames, then
     /// back at the same speed.
     Rotate {
@@ -224,13 +230,29 @@ impl Motion {
             Self::Rest { frames } => frames.max(1),
             Self::PanAndReturn { frames, .. } | Self::Rotate { frames, .. } => 2 * frames + 1,
             Self::Jump { hold, .. } | Self::Twist { hold, .. } => hold + 3,
+            Self::Path { ref offsets_px } => offsets_px.len() + 1,
+        }
+    }
+
+    /// A path of whole-gel translations from per-frame steps (frame 1 is one step from
+    /// rest), in px.
+    pub fn from_steps(steps_px: &[[f64; 2]]) -> Self {
+        let mut at = [0.0; 2];
+        Self::Path {
+            offsets_px: steps_px
+                .iter()
+                .map(|s| {
+                    at = [at[0] + s[0], at[1] + s[1]];
+                    at
+                })
+                .collect(),
         }
     }
 
     /// How far along frame `k` is: 0 at rest, 1 at the full motion.
     fn progress(&self, k: usize) -> f64 {
         match *self {
-            Self::Rest { .. } => 0.0,
+            Self::Rest { .. } | Self::Path { .. } => 0.0,
             Self::PanAndReturn { frames, .. } | Self::Rotate { frames, .. } => {
                 (if k <= frames {
                     k
@@ -253,6 +275,14 @@ impl Motion {
         let t = self.progress(k);
         match *self {
             Self::Rest { .. } => (rest, 0.0),
+            Self::Path { ref offsets_px } => {
+                let o = k
+                    .checked_sub(1)
+                    .and_then(|i| offsets_px.get(i))
+                    .copied()
+                    .unwrap_or([0.0; 2]);
+                ([rest[0] + o[0], rest[1] + o[1]], 0.0)
+            }
             Self::PanAndReturn { step_px, .. } => {
                 ([rest[0] + t * step_px[0], rest[1] + t * step_px[1]], 0.0)
             }
@@ -351,6 +381,16 @@ mod tests {
         let p = [100.0, 50.0];
         assert_eq!(m.place(p, 4).0, [114.0, 45.0]);
         assert_eq!(m.place(p, 8).0, p);
+    }
+
+    #[test]
+    fn a_path_sums_its_steps() {
+        let m = Motion::from_steps(&[[1.0, 0.0], [2.0, 1.0], [-3.0, -1.0]]);
+        assert_eq!(m.frames(), 4);
+        let p = [10.0, 20.0];
+        assert_eq!(m.place(p, 0).0, p);
+        assert_eq!(m.place(p, 2).0, [13.0, 21.0]);
+        assert_eq!(m.place(p, 3).0, p);
     }
 
     #[test]

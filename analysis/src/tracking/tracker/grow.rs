@@ -37,6 +37,7 @@ impl Tracker {
         let mut closest = vec![(NONE, f64::INFINITY); blobs.len()];
         for (i, slot) in nearest.iter_mut().enumerate() {
             if self.confident_only
+                && !self.prev_matched[i]
                 && matches!(
                     self.prev_state[i],
                     super::MarkerState::Lost | super::MarkerState::Ambiguous

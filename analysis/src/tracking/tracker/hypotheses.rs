@@ -1,12 +1,15 @@
-//! Step 1: the global motion since the last frame, or the admission that it is ambiguous.
+//! Step 1: the global motion since the last frame, and the aliases the frame leaves it.
 //!
 //! On a periodic lattice every shift by a lattice vector matches the interior equally well,
 //! so the choice between candidate motions rests on what breaks the periodicity: the
-//! lattice's edges and holes (predictions in view landing on nothing), blobs the candidate
-//! leaves unexplained *among* its predictions (not markers entering at the border, which no
-//! identity could explain), and the motion prior (the velocity each marker had). A
-//! translation vote finds jumps up to 1.6 spacings; when no translation explains the frame,
-//! a RANSAC over two-point similarity transforms (Fischler & Bolles 1981) finds whole-view
+//! lattice's edges and holes (predictions in view landing on nothing, at the border too
+//! where the marker was seen there last frame), and blobs a candidate leaves unexplained
+//! that could not have entered the view under it (moved back by the motion, they lay in
+//! the open view where nothing was). Between motions that evidence leaves standing, the
+//! smaller is taken, if it is clearly smaller; otherwise they are the frame's aliases
+//! ([`super::aliases`]). A translation vote finds jumps up to 1.6 spacings (2.6 when
+//! nothing nearer explains the frame); when no translation explains the frame, a RANSAC
+//! over two-point similarity transforms (Fischler & Bolles 1981) finds whole-view
 //! rotations.
 
 use super::super::detect::Blob;
@@ -35,7 +38,7 @@ impl Explanation {
     /// be (among its predictions, or deeper in the view than a marker could have entered).
     /// Blobs explained are not counted for it: an alias explains markers entering the view
     /// that the truth, knowing only the reference's markers, cannot.
-    fn against(&self) -> usize {
+    pub(super) fn against(&self) -> usize {
         self.missing + self.unexplained
     }
 
@@ -53,56 +56,81 @@ struct Hypothesis {
 /// Votes reach this far from the prior prediction, in spacings (a one-spacing jump of a
 /// grid or of random triangles is inside it).
 const VOTE_REACH: f64 = 1.6;
+/// When no motion within [`VOTE_REACH`] explains the frame cleanly, votes reach this far
+/// from where the markers were (a jump of two whole spacings is inside it).
+const WIDE_REACH: f64 = 2.6;
 /// Vote bin, in spacings.
 const VOTE_BIN: f64 = 0.1;
-/// An unexplained blob this far from the image border, in spacings, and as far from every
-/// blob no marker held in the last frame, cannot be a marker that entered the view.
-const ENTRY_DEPTH: f64 = 1.6;
 /// Two hypotheses differ when their motions differ by this much on average, in spacings.
 const DIFFERENT: f64 = 0.3;
-/// The motion prior breaks a tie only when one hypothesis is this much nearer to it than
-/// every rival, in spacings (far beyond any centroid error, and a quarter of the way to
-/// the next lattice alias).
-const PRIOR_MARGIN: f64 = 0.1;
+/// The smaller of two motions is taken only when it is smaller by this much, in spacings
+/// (far beyond any centroid error; along a lattice axis it leaves pans between 0.45 and
+/// 0.55 spacing per frame ambiguous, where the two aliases are nearly as large).
+const SMALLER_MARGIN: f64 = 0.1;
 
 impl Tracker {
-    /// Per marker, the component-wise median velocity of itself and its neighbours.
+    /// Per marker, the component-wise median velocity of itself and its neighbours that
+    /// were matched to a blob last frame (a measured motion); a marker with none of those
+    /// (out of view, or among lost ones) takes the median of every matched marker, so that
+    /// it keeps moving with the gel instead of standing where it was last placed.
     fn smoothed_velocity(&self) -> Vec<[f64; 2]> {
         let mut vx = Vec::with_capacity(16);
         let mut vy = Vec::with_capacity(16);
+        let (mut gx, mut gy): (Vec<f64>, Vec<f64>) = (0..self.len())
+            .filter(|&i| self.prev_matched[i])
+            .map(|i| (self.vel[i][0], self.vel[i][1]))
+            .unzip();
+        let global = [median(&mut gx), median(&mut gy)];
         (0..self.len())
             .map(|i| {
                 vx.clear();
                 vy.clear();
                 for &j in std::iter::once(&(i as u32)).chain(self.neighbours(i)) {
-                    vx.push(self.vel[j as usize][0]);
-                    vy.push(self.vel[j as usize][1]);
+                    if self.prev_matched[j as usize] {
+                        vx.push(self.vel[j as usize][0]);
+                        vy.push(self.vel[j as usize][1]);
+                    }
                 }
-                [
-                    median(&mut vx).unwrap_or(0.0),
-                    median(&mut vy).unwrap_or(0.0),
-                ]
+                match (median(&mut vx), median(&mut vy), global) {
+                    (Some(x), Some(y), _) => [x, y],
+                    (_, _, [Some(x), Some(y)]) => [x, y],
+                    _ => self.vel[i],
+                }
             })
             .collect()
     }
 
-    /// Picks the motion that explains the frame into `self.hyp`. Returns `false` when two
-    /// clearly different motions explain it about equally and the motion prior cannot tell
-    /// them apart: the frame is ambiguous.
-    pub(super) fn choose_hypothesis(&mut self, blobs: &[Blob]) -> bool {
+    /// Picks the motion that explains the frame into `self.hyp`. Returns the uniform
+    /// offsets from it of the rivals that explain the frame about as well and are about as
+    /// small (empty when the choice is certain): the frame's aliases.
+    ///
+    /// Between motions the frame cannot tell apart (on a periodic lattice, every shift by a
+    /// lattice vector), the smaller one since the last frame is taken: a gel's motion from
+    /// one frame to the next is bounded, and the smaller of two aliases is the true one
+    /// whenever that bound is under half a spacing. The velocity is not a tie-breaker: at a
+    /// reversal it points at the neighbouring alias (a pan of 0.4 spacing per frame turning
+    /// back lies 0.2 spacing from its alias continuing, and 0.4 from standing still).
+    pub(super) fn choose_hypothesis(&mut self, blobs: &[Blob]) -> Vec<[f64; 2]> {
         let s = self.spacing_px;
         let n = self.len();
         let prior = self.smoothed_velocity();
-        let mut hyps: Vec<Hypothesis> = Vec::with_capacity(16);
         let zero = vec![[0.0; 2]; n];
-        hyps.push(self.hypothesis(zero, blobs));
-        if prior.iter().any(|v| v[0].hypot(v[1]) > 0.02 * s) {
+        let moving = prior.iter().any(|v| v[0].hypot(v[1]) > 0.02 * s);
+        let mut hyps: Vec<Hypothesis> = Vec::with_capacity(24);
+        hyps.push(self.hypothesis(zero.clone(), blobs));
+        if moving {
             hyps.push(self.hypothesis(prior.clone(), blobs));
         }
-        let (votes, pairs) = self.vote_translations(&prior, blobs);
-        for v in votes {
-            let motion = prior.iter().map(|p| [p[0] + v[0], p[1] + v[1]]).collect();
-            hyps.push(self.hypothesis(motion, blobs));
+        // Translations voted around the velocity, and around standing still when the gel
+        // was moving and nothing found so far is small enough that no alias left unvoted
+        // could be smaller (a reversal lies near standing still).
+        let (votes, mut pairs) = self.vote_translations(&prior, VOTE_REACH, blobs);
+        self.push_shifted(&mut hyps, &prior, &votes, 0.0, blobs);
+        let still_voted = !moving || self.has_small_candidate(&hyps);
+        if !still_voted {
+            let (votes, more) = self.vote_translations(&zero, VOTE_REACH, blobs);
+            self.push_shifted(&mut hyps, &zero, &votes, 0.0, blobs);
+            pairs.extend(more);
         }
         let best_matched = hyps.iter().map(|h| h.e.matched).max().unwrap_or(0);
         let kept = hyps.iter().map(|h| h.e.kept).max().unwrap_or(0);
@@ -111,82 +139,129 @@ impl Tracker {
         {
             hyps.push(self.hypothesis(motion, blobs));
         }
-
-        let differs = |a: &[[f64; 2]], b: &[[f64; 2]]| {
-            a.iter().zip(b).map(|(x, y)| dist(*x, *y)).sum::<f64>() / n.max(1) as f64
-                > DIFFERENT * s
-        };
-        // Rank, then add the motions one lattice step (one vote) around the best and rank
-        // again: every alias of the winner must face it, however far the gel has moved
-        // since the last certain frame.
-        // (Needed only when the winner is not the motion prior itself: around the prior the
-        // first vote already saw them.)
+        let differs = self.differs();
+        // When nothing within reach explains the frame cleanly, look further: a jump of
+        // two whole spacings.
         let (_, best0, _) = rank(&hyps, &differs);
-        let needs_aliases =
-            self.prior_cost(&prior, &prior).is_none() || differs(&hyps[best0].motion, &prior);
-        let around = if needs_aliases {
-            hyps[best0].motion.clone()
-        } else {
-            Vec::new()
+        if hyps[best0].e.against() > clean(&hyps[best0].e) {
+            let (votes, _) = self.vote_translations(&zero, WIDE_REACH, blobs);
+            self.push_shifted(&mut hyps, &zero, &votes, 0.0, blobs);
+        }
+        // Every alias of the winner (one vote around it) must face it, however far the gel
+        // has moved since the last certain frame; around the velocity (or standing still,
+        // when voted there) the first votes already saw them.
+        let (_, best0, _) = rank(&hyps, &differs);
+        let around = hyps[best0].motion.clone();
+        if differs(&around, &prior) && (!still_voted || differs(&around, &zero)) {
+            let (votes, _) = self.vote_translations(&around, VOTE_REACH, blobs);
+            self.push_shifted(&mut hyps, &around, &votes, DIFFERENT * s, blobs);
+        }
+        let (pick, tie) = self.decide(&hyps);
+        let e = &hyps[pick].e;
+        let whole_frame = e.missing as f64 <= 0.05 * e.kept as f64 + 2.0 && e.matched >= 3;
+        self.confident_only = !whole_frame;
+        let chosen = std::mem::take(&mut hyps[pick].motion);
+        let offsets = tie
+            .into_iter()
+            .map(|k| mean_difference(&hyps[k].motion, &chosen))
+            .collect();
+        self.hyp.copy_from_slice(&chosen);
+        offsets
+    }
+
+    /// The hypothesis to take among those ranked, with `self.global_confidence` set, and
+    /// the rivals it could not be told from (empty when the choice is certain).
+    fn decide(&mut self, hyps: &[Hypothesis]) -> (usize, Vec<usize>) {
+        let s = self.spacing_px;
+        let differs = self.differs();
+        let (_, best, rivals) = rank(hyps, &differs);
+        if rivals.is_empty() || hyps[best].e.matched < 3 {
+            self.global_confidence = 1.0;
+            return (best, Vec::new());
+        }
+        // The smallest motion decides, if it is clearly smaller than every clearly
+        // different rival; rivals nearly as small stay as aliases of the frame.
+        let mut sizes: Vec<(f64, usize)> = std::iter::once(best)
+            .chain(rivals.iter().copied())
+            .filter_map(|k| self.motion_size(&hyps[k].motion).map(|c| (c, k)))
+            .collect();
+        sizes.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let Some(&(c1, first)) = sizes.first() else {
+            // Nothing measured to size the motions by: every rival is an alias.
+            self.global_confidence = 0.0;
+            return (best, rivals);
         };
-        let votes = if needs_aliases {
-            self.vote_translations(&around, blobs).0
+        let tie: Vec<usize> = sizes
+            .iter()
+            .filter(|(c, k)| {
+                *c - c1 < SMALLER_MARGIN * s && differs(&hyps[*k].motion, &hyps[first].motion)
+            })
+            .map(|&(_, k)| k)
+            .collect();
+        let c2 = sizes
+            .iter()
+            .find(|(_, k)| differs(&hyps[*k].motion, &hyps[first].motion))
+            .map_or(f64::INFINITY, |&(c, _)| c);
+        // Among the motions no different from the smallest, the frame's evidence picks
+        // (a refined vote or a similarity fits better than standing still exactly).
+        let first = sizes
+            .iter()
+            .filter(|(_, k)| !differs(&hyps[*k].motion, &hyps[first].motion))
+            .map(|&(_, k)| k)
+            .min_by(|&a, &b| {
+                hyps[a]
+                    .e
+                    .against()
+                    .cmp(&hyps[b].e.against())
+                    .then(hyps[b].e.mean_fit().total_cmp(&hyps[a].e.mean_fit()))
+            })
+            .unwrap_or(first);
+        self.global_confidence = if tie.is_empty() {
+            ((c2 - c1) / (3.0 * SMALLER_MARGIN * s)).min(1.0)
         } else {
-            Vec::new()
+            0.0
         };
+        (first, tie)
+    }
+
+    /// Whether a hypothesis not refuted, whose predictions land on their blobs (within a
+    /// twentieth of a spacing on average), moves the markers by so little (under half a
+    /// spacing less the margin) that every alias of it, a lattice step away, is clearly
+    /// larger: then no alias left unvoted can win on size.
+    fn has_small_candidate(&self, hyps: &[Hypothesis]) -> bool {
+        let s = self.spacing_px;
+        let (candidates, _, _) = rank(hyps, &self.differs());
+        candidates.iter().any(|&k| {
+            hyps[k].e.mean_fit() >= 0.8
+                && self
+                    .motion_size(&hyps[k].motion)
+                    .is_some_and(|c| c <= (0.5 - SMALLER_MARGIN) * s)
+        })
+    }
+
+    /// Whether two per-marker motions differ by more than [`DIFFERENT`] spacings on average.
+    fn differs(&self) -> impl Fn(&[[f64; 2]], &[[f64; 2]]) -> bool + use<> {
+        let (n, s) = (self.len().max(1) as f64, self.spacing_px);
+        move |a: &[[f64; 2]], b: &[[f64; 2]]| {
+            a.iter().zip(b).map(|(x, y)| dist(*x, *y)).sum::<f64>() / n > DIFFERENT * s
+        }
+    }
+
+    /// Adds `base + v` for each vote `v` longer than `min_len`.
+    fn push_shifted(
+        &self,
+        hyps: &mut Vec<Hypothesis>,
+        base: &[[f64; 2]],
+        votes: &[[f64; 2]],
+        min_len: f64,
+        blobs: &[Blob],
+    ) {
         for v in votes {
-            if v[0].hypot(v[1]) > DIFFERENT * s {
-                let motion = around.iter().map(|p| [p[0] + v[0], p[1] + v[1]]).collect();
+            if v[0].hypot(v[1]) > min_len {
+                let motion = base.iter().map(|p| [p[0] + v[0], p[1] + v[1]]).collect();
                 hyps.push(self.hypothesis(motion, blobs));
             }
         }
-        let (candidates, best, rivals) = rank(&hyps, &differs);
-        let e = &hyps[best].e;
-        let whole_frame = e.missing as f64 <= 0.05 * e.kept as f64 + 2.0 && e.matched >= 3;
-        let pick = if rivals.is_empty() || e.matched < 3 {
-            self.global_confidence = 1.0;
-            best
-        } else {
-            // The motion prior decides, if one candidate is clearly nearer to it.
-            let mut costs: Vec<(f64, usize)> = std::iter::once(best)
-                .chain(rivals.iter().copied())
-                .filter_map(|k| self.prior_cost(&hyps[k].motion, &prior).map(|c| (c, k)))
-                .collect();
-            costs.sort_by(|a, b| a.0.total_cmp(&b.0));
-            // The nearest to the prior against the nearest clearly different one.
-            let first = costs.first().copied();
-            let second = first.and_then(|(_, k1)| {
-                costs
-                    .iter()
-                    .find(|(_, k)| differs(&hyps[*k].motion, &hyps[k1].motion))
-                    .copied()
-            });
-            match (first, second) {
-                (Some((c1, k)), Some((c2, _))) if c2 - c1 >= PRIOR_MARGIN * s => {
-                    self.global_confidence = ((c2 - c1) / (3.0 * PRIOR_MARGIN * s)).min(1.0);
-                    k
-                }
-                // No prior at all (the last frames were ambiguous), but the markers stand
-                // exactly where they last were certain (within 2 % of a spacing): the gel
-                // came back. Anything else stays ambiguous.
-                _ if costs.is_empty()
-                    && candidates.contains(&0)
-                    && hyps[0].e.mean_fit() >= 0.92 =>
-                {
-                    self.global_confidence = 0.5;
-                    0
-                }
-                _ => {
-                    self.global_confidence = 0.0;
-                    self.confident_only = true;
-                    return false;
-                }
-            }
-        };
-        self.confident_only = !whole_frame;
-        let chosen = std::mem::take(&mut hyps[pick].motion);
-        self.hyp.copy_from_slice(&chosen);
-        true
     }
 
     fn hypothesis(&self, motion: Vec<[f64; 2]>, blobs: &[Blob]) -> Hypothesis {
@@ -194,26 +269,22 @@ impl Tracker {
         Hypothesis { motion, e }
     }
 
-    /// How far `motion` lies from the motion priors: the mean distance, over the markers in
-    /// view that were measured last frame (whose velocity is a measurement), from the
-    /// constant-velocity prior or from standing still, whichever is nearer (a gel that
-    /// reverses or stops is as plausible as one that keeps going); `None` with fewer than
-    /// three such markers. After frames with no markers at all (a dark or covered camera)
-    /// the markers measured before them count, at their last positions: nothing was seen
-    /// to move. After ambiguous frames nothing counts: the gel was seen moving, by how much
-    /// is what was not known.
-    fn prior_cost(&self, motion: &[[f64; 2]], prior: &[[f64; 2]]) -> Option<f64> {
-        let (mut moving, mut still, mut k) = (0.0, 0.0, 0usize);
-        for (i, p) in prior.iter().enumerate() {
-            let known = self.prev_state[i].is_measured()
-                || (self.after_blind && self.measured_before_blind[i]);
+    /// How far `motion` moves the markers: the mean length over the markers in view that
+    /// were matched to a whole blob last frame, their identity certain or not (whose place
+    /// is a measurement; a blob touching the border is biased inward); `None` with fewer
+    /// than three such markers. After frames with no markers at all (a dark or covered
+    /// camera) the markers measured before them count, at their last positions: nothing was
+    /// seen to move.
+    fn motion_size(&self, motion: &[[f64; 2]]) -> Option<f64> {
+        let (mut sum, mut k) = (0.0, 0usize);
+        for (i, m) in motion.iter().enumerate() {
+            let known = self.prev_whole[i] || (self.after_blind && self.measured_before_blind[i]);
             if known && self.in_view(self.pos[i]) {
-                moving += dist(motion[i], *p);
-                still += motion[i][0].hypot(motion[i][1]);
+                sum += m[0].hypot(m[1]);
                 k += 1;
             }
         }
-        (k >= 3).then(|| moving.min(still) / k as f64)
+        (k >= 3).then(|| sum / k as f64)
     }
 
     /// Common translations of the markers away from the motion prior: the vectors from each
@@ -223,13 +294,14 @@ impl Tracker {
     fn vote_translations(
         &self,
         prior: &[[f64; 2]],
+        reach_spacings: f64,
         blobs: &[Blob],
     ) -> (Vec<[f64; 2]>, Vec<(u32, u32)>) {
         let s = self.spacing_px;
-        let half = (VOTE_REACH / VOTE_BIN).round() as usize;
+        let half = (reach_spacings / VOTE_BIN).round() as usize;
         let bins = 2 * half + 1;
         let bin = VOTE_BIN * s;
-        let reach = VOTE_REACH * s;
+        let reach = reach_spacings * s;
         let mut cands: Vec<[f64; 2]> = Vec::new();
         let mut pairs: Vec<(u32, u32)> = Vec::new();
         let mut hist = vec![0u32; bins * bins];
@@ -437,12 +509,17 @@ impl Tracker {
         let mut e = Explanation::default();
         // Per blob, how well the nearest prediction lands on it; −1: none does.
         let mut fit = vec![-1.0f64; blobs.len()];
-        for (p, m) in self.pos.iter().zip(motion) {
+        for (i, (p, m)) in self.pos.iter().zip(motion).enumerate() {
             let q = [p[0] + m[0], p[1] + m[1]];
-            if !self.inside(q, self.radius_px) {
+            if !self.in_view(q) {
                 continue;
             }
-            e.kept += 1;
+            // A prediction whole in view must land on a blob; so must one near the border
+            // of a marker whose blob was seen there last frame, half in view or more, and
+            // that moves no further out (a sliver at the edge comes and goes).
+            let counted = self.inside(q, self.radius_px)
+                || (self.prev_matched[i]
+                    && self.border_depth(q) >= self.border_depth(*p).max(0.5 * self.radius_px));
             let (mut nearest, mut at) = (tol, NONE);
             self.buckets.for_each_near(q, tol, |b| {
                 let d = dist(q, [blobs[b as usize].x, blobs[b as usize].y]);
@@ -450,11 +527,16 @@ impl Tracker {
                     (nearest, at) = (d, b);
                 }
             });
-            if at == NONE {
-                e.missing += 1;
-            } else {
-                e.matched += 1;
+            if at != NONE {
                 fit[at as usize] = fit[at as usize].max(1.0 - nearest / tol);
+            }
+            if counted {
+                e.kept += 1;
+                if at == NONE {
+                    e.missing += 1;
+                } else {
+                    e.matched += 1;
+                }
             }
         }
         e.fit = fit.iter().filter(|&&f| f > 0.0).sum();
@@ -470,18 +552,73 @@ impl Tracker {
                 .collect();
             let mut grid = Buckets::default();
             grid.build_points(predicted.iter().copied(), self.width, self.height, 0.5 * s);
-            let depth = ENTRY_DEPTH * s;
+            let mean = mean_of(motion);
             e.unexplained = unhit
                 .into_iter()
                 .filter(|&b| {
                     let p = [blobs[b].x, blobs[b].y];
                     surrounded(p, &predicted, &grid, 1.5 * s)
-                        || (self.inside(p, depth) && !self.foreign_near(p, depth))
+                        || !self.could_enter(p, motion, mean, &predicted, &grid)
                 })
                 .count();
         }
         e
     }
+
+    /// Whether a blob at `p` that no prediction explains can be a marker entering the
+    /// view under `motion`: moved back by the motion of the nearest prediction, it lay
+    /// outside the view (or too near its border to be seen whole), or near a blob that no
+    /// marker held last frame (a marker that entered earlier). A blob the motion brings
+    /// from the open middle of the last frame, where nothing was, is not one.
+    fn could_enter(
+        &self,
+        p: [f64; 2],
+        motion: &[[f64; 2]],
+        mean: [f64; 2],
+        predicted: &[[f64; 2]],
+        grid: &Buckets,
+    ) -> bool {
+        let reach = 1.5 * self.spacing_px;
+        let (mut best, mut m) = (reach, mean);
+        grid.for_each_near(p, reach, |k| {
+            let d = dist(p, predicted[k as usize]);
+            if d < best {
+                (best, m) = (d, motion[k as usize]);
+            }
+        });
+        let origin = [p[0] - m[0], p[1] - m[1]];
+        !self.inside(origin, self.radius_px) || self.foreign_near(origin, 0.5 * self.spacing_px)
+    }
+
+    /// Distance from `p` to the nearest image border, px.
+    fn border_depth(&self, p: [f64; 2]) -> f64 {
+        (p[0] + 0.5)
+            .min(p[1] + 0.5)
+            .min(self.width - 0.5 - p[0])
+            .min(self.height - 0.5 - p[1])
+    }
+}
+
+/// The mean of a per-marker motion.
+fn mean_of(motion: &[[f64; 2]]) -> [f64; 2] {
+    let n = motion.len().max(1) as f64;
+    motion
+        .iter()
+        .fold([0.0; 2], |a, m| [a[0] + m[0] / n, a[1] + m[1] / n])
+}
+
+/// The mean of `a − b` over the markers: the uniform offset between two placements.
+pub(super) fn mean_difference(a: &[[f64; 2]], b: &[[f64; 2]]) -> [f64; 2] {
+    let n = a.len().max(1) as f64;
+    a.iter().zip(b).fold([0.0; 2], |acc, (x, y)| {
+        [acc[0] + (x[0] - y[0]) / n, acc[1] + (x[1] - y[1]) / n]
+    })
+}
+
+/// How much evidence against a hypothesis is still a clean explanation of the frame: a few
+/// markers, or one in fifty (as [`rank`]'s slack).
+fn clean(e: &Explanation) -> usize {
+    3.max(e.kept / 50)
 }
 
 /// Candidates (not refuted: no more hard evidence against them than the least refuted,

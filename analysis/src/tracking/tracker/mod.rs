@@ -9,16 +9,19 @@
 //! steps, each of which can only withhold an identity, never guess one:
 //!
 //! 1. **A global motion first** ([`hypotheses`]). Candidate motions of the whole gel since
-//!    the last frame: none, each marker's velocity (the motion prior, smoothed over its
-//!    neighbours), common translations voted by all marker→blob vectors up to 1.6 spacings,
-//!    and — when none of these explains the frame — similarity transforms (rotation,
-//!    translation, scale) by RANSAC. Each is scored by how well it explains the frame:
-//!    predictions landing on blobs, minus predictions in view landing on nothing (the
-//!    lattice's edges and holes), minus blobs *surrounded* by predictions that none explains
-//!    (markers entering the view at its border are not counted against a hypothesis). When
-//!    two clearly different hypotheses explain the frame about equally, the motion prior
-//!    decides only if one lies clearly closer to it; otherwise the frame is
-//!    [`MarkerState::Ambiguous`] and no identity is given.
+//!    the last frame: none, each marker's velocity (smoothed over its neighbours), common
+//!    translations voted by all marker→blob vectors up to 1.6 spacings around the velocity
+//!    and around standing still (2.6 when nothing nearer explains the frame), and — when
+//!    none of these explains the frame — similarity transforms (rotation, translation,
+//!    scale) by RANSAC. Each is scored by what cannot alias: predictions in view landing on
+//!    nothing (the lattice's edges and holes), and blobs no prediction explains that could
+//!    not have entered the view under that motion. Among the motions the evidence leaves
+//!    standing, the **smaller** is taken (a gel's motion between two frames is bounded;
+//!    the velocity is not used to choose, since at a reversal it points at the neighbouring
+//!    alias); two clearly different motions about equally small are *aliases*.
+//!    **Aliases are carried** ([`aliases`]): the frame is followed provisionally, and its
+//!    identities are withheld ([`MarkerState::Ambiguous`]) until the evidence of a later
+//!    frame leaves only one placement standing.
 //! 2. **Most certain first** ([`grow`]). Seeds: markers with exactly one blob near their
 //!    prediction and no other within 0.6 spacing, mutually nearest. From them, best-first:
 //!    the cheapest (prediction, blob) pair anywhere is matched next, and each match predicts
@@ -46,6 +49,7 @@
 //! frame's hypothesis margin and the local margin between its blob and the next blob
 //! around its prediction; 0 for a marker not measured.
 
+mod aliases;
 mod consistency;
 mod grow;
 mod hypotheses;
@@ -69,10 +73,11 @@ pub enum MarkerState {
     Predicted,
     /// Predicted at or beyond the image border.
     OutOfView,
-    /// A blob is there, but two placements of the markers explain the frame about equally
-    /// well (a periodic grid moved by about half a spacing, or by a whole one with its edges
-    /// out of view), or its region contradicts the rest of the field; the identity is
-    /// withheld rather than guessed. The position is the last certain one.
+    /// Two placements of the markers explain the frame (and every frame since the last
+    /// certain one) about equally well — a periodic grid moved by about half a spacing, or
+    /// by a whole one with its edges out of view — or the marker's region contradicts the
+    /// rest of the field; the identity is withheld rather than guessed. The position is
+    /// where the smaller motion puts it (a blob, when one is there), not a measurement.
     Ambiguous,
     /// Not seen, and its whereabouts are uncertain; its position is a guess.
     Lost,
@@ -151,6 +156,13 @@ pub struct Tracker {
     after_blind: bool,
     /// Which markers were measured in the last frame that showed blobs.
     measured_before_blind: Vec<bool>,
+    /// Which markers were matched to a blob last frame, their identity certain or not.
+    prev_matched: Vec<bool>,
+    /// Which of them to a whole blob (not touching the border).
+    prev_whole: Vec<bool>,
+    /// Uniform offsets, px, at which the markers would explain every frame since their
+    /// identities were last certain as well as where they are placed ([`aliases`]).
+    aliases: Vec<[f64; 2]>,
 }
 
 impl Tracker {
@@ -197,6 +209,9 @@ impl Tracker {
             blind_run: 0,
             after_blind: false,
             measured_before_blind: vec![true; n],
+            prev_matched: vec![true; n],
+            prev_whole: reference.markers.iter().map(|m| !m.border).collect(),
+            aliases: Vec::new(),
             reference_px,
         }
     }
@@ -271,31 +286,27 @@ impl Tracker {
         let blind = blobs.len() < 3;
         self.after_blind = !blind && self.blind_run > 0;
 
-        // 1. The global motion; an ambiguous frame gives no identities at all.
-        let certain = self.choose_hypothesis(blobs);
-        if certain {
-            // 2–4. Seeds, best-first growth, local checks, one field.
-            self.seed_and_grow(blobs);
-            self.validate(blobs);
-            self.enforce_consistency(blobs);
-        } else {
-            for i in 0..n {
-                self.withheld[i] = true;
-            }
+        // 1. The global motion, and the aliases the lattice leaves it (an ambiguous frame
+        // is followed provisionally, its identities withheld).
+        let tie = self.choose_hypothesis(blobs);
+        let certain = self.settle_aliases(&tie, blobs);
+        // 2–4. Seeds, best-first growth, local checks, one field.
+        self.seed_and_grow(blobs);
+        self.validate(blobs);
+        self.enforce_consistency(blobs);
+        if !certain {
+            self.withheld.fill(true);
         }
 
         // Positions of unmatched markers: from their matched neighbours' displacement (so
-        // they do not drift by accumulating guesses), else their own prediction; withheld
-        // markers keep their last certain position.
+        // they do not drift by accumulating guesses), else their own prediction.
         for i in 0..n {
             self.new_pos[i] = match self.assigned[i] {
-                NONE if self.withheld[i] && !certain => self.pos[i],
                 NONE => match self.neighbour_displacement(i, blobs) {
                     Some(d) => [
                         self.reference_px[i][0] + d[0],
                         self.reference_px[i][1] + d[1],
                     ],
-                    None if self.withheld[i] => self.pos[i],
                     None => [
                         self.pos[i][0] + self.hyp[i][0],
                         self.pos[i][1] + self.hyp[i][1],
@@ -333,6 +344,10 @@ impl Tracker {
                     };
                     (state, 0.0)
                 }
+                _ if !certain => {
+                    self.missed[i] = 0;
+                    (MarkerState::Ambiguous, 0.0)
+                }
                 b => {
                     self.missed[i] = 0;
                     let blob = &blobs[b as usize];
@@ -351,20 +366,27 @@ impl Tracker {
             };
             self.state[i] = state;
             self.confidence[i] = confidence;
-            // Velocity is the motion prior of the next frame: only a measured motion is one.
-            self.vel[i] = if matches!(
-                state,
-                MarkerState::Tracked
-                    | MarkerState::Border
-                    | MarkerState::Merged
-                    | MarkerState::Predicted
-                    | MarkerState::OutOfView
-            ) {
+            // Velocity is the motion prior of the next frame: only a measured motion is one
+            // (a provisional one included).
+            self.vel[i] = if self.assigned[i] != NONE
+                || matches!(
+                    state,
+                    MarkerState::Tracked
+                        | MarkerState::Border
+                        | MarkerState::Merged
+                        | MarkerState::Predicted
+                        | MarkerState::OutOfView
+                ) {
                 [p[0] - self.pos[i][0], p[1] - self.pos[i][1]]
             } else {
                 [0.0; 2]
             };
             self.pos[i] = p;
+        }
+        for i in 0..n {
+            let b = self.assigned[i];
+            self.prev_matched[i] = b != NONE;
+            self.prev_whole[i] = b != NONE && !blobs[b as usize].border;
         }
         if blind {
             self.blind_run = self.blind_run.saturating_add(1);

@@ -232,6 +232,14 @@ impl Cmd {
             );
         }
         out!("marker states after the reference: {}", states.join(", "));
+        if summary.ambiguous_frames > 0 {
+            out!(
+                "{} frame(s) ambiguous: two placements of the markers explained them (and every \
+                 frame since the last certain one) equally well, so their identities were \
+                 withheld (`ambiguous`) until the frame told them apart",
+                summary.ambiguous_frames
+            );
+        }
         out!(
             "median {:.3} ms per frame (detection + identity{})",
             summary.median_ms_per_frame,

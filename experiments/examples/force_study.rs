@@ -58,8 +58,9 @@ fn cells(root: &Path, tmp: &Path) {
     println!("|---|---|---|---|---|---|");
     for cell_mm in [0.75, 1.0, 1.5, 2.0] {
         let opts = CalibrateOptions {
-            method: Method::Traction,
+            method: Some(Method::Traction),
             cell_mm: Some(cell_mm),
+            symmetric: Some(false),
             ..CalibrateOptions::default()
         };
         let sensor = calibrate(&cal, &opts).expect("calibrate");
@@ -228,8 +229,8 @@ fn grasp(root: &Path, tmp: &Path) {
             ("scale, symmetric", Method::Scale, true),
         ] {
             let opts = CalibrateOptions {
-                method,
-                symmetric,
+                method: Some(method),
+                symmetric: Some(symmetric),
                 ..CalibrateOptions::default()
             };
             let sensor = calibrate(&runs, &opts).expect("calibrate");
@@ -270,10 +271,10 @@ fn support(root: &Path, tmp: &Path) {
         for cell_mm in experiments::sensor::calibrate::CELLS {
             for support in experiments::sensor::calibrate::SUPPORTS {
                 let opts = CalibrateOptions {
-                    method: Method::Traction,
+                    method: Some(Method::Traction),
                     cell_mm: Some(cell_mm),
                     support: Some(support),
-                    symmetric,
+                    symmetric: Some(symmetric),
                 };
                 let sensor = calibrate(&cal, &opts).expect("calibrate");
                 let path = tmp.join("support.yaml");
@@ -367,41 +368,52 @@ fn main() {
             })
             .collect();
         for (method, opts) in [
-            ("moments", CalibrateOptions::default()),
+            ("chosen (no flags)", CalibrateOptions::default()),
+            (
+                "moments",
+                CalibrateOptions {
+                    method: Some(Method::Moments),
+                    symmetric: Some(false),
+                    ..CalibrateOptions::default()
+                },
+            ),
             (
                 "traction",
                 CalibrateOptions {
-                    method: Method::Traction,
+                    method: Some(Method::Traction),
+                    symmetric: Some(false),
                     ..CalibrateOptions::default()
                 },
             ),
             (
                 "scale",
                 CalibrateOptions {
-                    method: Method::Scale,
+                    method: Some(Method::Scale),
+                    symmetric: Some(false),
                     ..CalibrateOptions::default()
                 },
             ),
             (
                 "moments, symmetric",
                 CalibrateOptions {
-                    symmetric: true,
+                    method: Some(Method::Moments),
+                    symmetric: Some(true),
                     ..CalibrateOptions::default()
                 },
             ),
             (
                 "traction, symmetric",
                 CalibrateOptions {
-                    method: Method::Traction,
-                    symmetric: true,
+                    method: Some(Method::Traction),
+                    symmetric: Some(true),
                     ..CalibrateOptions::default()
                 },
             ),
             (
                 "scale, symmetric",
                 CalibrateOptions {
-                    method: Method::Scale,
-                    symmetric: true,
+                    method: Some(Method::Scale),
+                    symmetric: Some(true),
                     ..CalibrateOptions::default()
                 },
             ),

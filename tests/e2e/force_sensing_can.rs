@@ -192,7 +192,7 @@ fn a_grasp_calibrated_in_its_jig_reads_the_relaxing_squeeze() {
     std::fs::create_dir_all(tmp.path().join("cal")).unwrap();
     std::fs::create_dir_all(tmp.path().join("test")).unwrap();
     let runs = vec![shared_dry_run("portable-normal"), can(1, "cal")];
-    let sensor = calibrate(&runs, &Default::default()).unwrap();
+    let sensor = calibrate(&runs, &crate::force_sensing::moments_on_every_feature()).unwrap();
     assert!(sensor.relaxation.is_some());
     let test = can(2, "test");
     let force = csv_rows(&test.join("force.csv"));
@@ -304,8 +304,8 @@ fn calibrated_on_flat_and_sphere_runs_the_sensor_reads_the_unseen_can() {
     let traction = calibrate(
         &runs,
         &experiments::sensor::calibrate::CalibrateOptions {
-            method: experiments::sensor::calibrate::Method::Traction,
-            symmetric: true,
+            method: Some(experiments::sensor::calibrate::Method::Traction),
+            symmetric: Some(true),
             ..Default::default()
         },
     )
@@ -314,7 +314,8 @@ fn calibrated_on_flat_and_sphere_runs_the_sensor_reads_the_unseen_can() {
     let scale = calibrate(
         &runs,
         &experiments::sensor::calibrate::CalibrateOptions {
-            method: experiments::sensor::calibrate::Method::Scale,
+            method: Some(experiments::sensor::calibrate::Method::Scale),
+            symmetric: Some(false),
             ..Default::default()
         },
     )

@@ -12,6 +12,7 @@ mod faults;
 mod finite_strain;
 mod force_sensing;
 mod force_sensing_can;
+mod force_unseen;
 mod fuzz;
 mod grasp;
 mod hostile;

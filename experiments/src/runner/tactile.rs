@@ -104,9 +104,8 @@ impl LiveTactile {
         });
         let region = history.region(field, seen);
         let reading = reader.read(field, region, map.as_ref()?);
-        let (mut v, sd) = reader.model.predict(&reading.features);
-        history.wrench(t_ns, &mut v, region);
-        Some((v, sd))
+        let w = reader.wrench(&reading, region, history, t_ns);
+        Some((w.value, w.sd))
     }
 
     /// The grip has closed (or re-closed): the next frame's field is the pressing field.

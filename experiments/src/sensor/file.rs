@@ -16,8 +16,8 @@ pub use super::scale::ScaleSettings;
 /// What every sensor file says it is.
 pub const FORMAT: &str = "gelrig-sensor";
 /// The newest version this build writes and reads (2 added `relaxation`; 3 `symmetric` and
-/// the traction map's `ellipse`).
-pub const VERSION: u32 = 3;
+/// the traction map's `ellipse`; 4 `chosen_by`, `unseen_shape` and `envelope`).
+pub const VERSION: u32 = 4;
 /// Field moments, ridge per channel ([`analysis::force_sensor`]).
 pub const METHOD: &str = "field-moments-ridge";
 /// The inverse traction map's integrals, ridge per channel
@@ -95,6 +95,110 @@ pub struct SensorFile {
     pub calibrated_on: Vec<RunRef>,
     /// Its own error on data it was not fitted to.
     pub held_out: HeldOut,
+    /// How the method and its settings were chosen, with every candidate's score (absent
+    /// before version 4, and where the method was given in full).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chosen_by: Option<Choice>,
+    /// Its error on indenters left out of the fit, each in turn: what it reads a shape it
+    /// never saw with. Absent where every calibration run pressed the same indenter (then
+    /// the unseen-shape error is unknown) and before version 4.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unseen_shape: Option<UnseenShape>,
+    /// What the calibration saw — contact sizes, shapes, places, loads and fields — against
+    /// which a frame is judged inside or outside the calibration (absent before version 4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub envelope: Option<Envelope>,
+}
+
+/// What the calibration saw ([`super::envelope`] judges frames against it).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Envelope {
+    /// The contact regions of the calibration's frames (absent: none was found).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactRange>,
+    /// Per feature, its range over the calibration's frames.
+    pub features: Vec<[f64; 2]>,
+    /// The gel pad's extent, mm (width along the view's x, length along y), centred on the
+    /// view: where a contact longer than the view is taken to end.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pad_mm: Option<[f64; 2]>,
+}
+
+/// The contact regions a calibration saw.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactRange {
+    /// Equivalent radius (of the disc of the same area), mm: least and largest.
+    pub radius_mm: [f64; 2],
+    /// Elongation, the major over the minor axis of the moment ellipse: least and largest.
+    pub elongation: [f64; 2],
+    /// Largest distance of a region's centroid from the view's centre, mm.
+    pub offset_mm: f64,
+    /// Whether the calibration saw contacts across the view (running out of it at both ends
+    /// of their length): then it has learnt what the view sees of them, and such a frame is
+    /// neither corrected nor widened for the part beyond the view.
+    #[serde(default)]
+    pub across_view: bool,
+}
+
+/// How the calibration chose its method and settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Choice {
+    /// The error that chose: `leave one indenter out` or `5 folds of frames` (one
+    /// indenter).
+    pub by: String,
+    /// The channels the score sums (those the calibration loads above its force sensor's
+    /// noise).
+    pub scored: Vec<String>,
+    /// Every candidate tried, best first.
+    pub candidates: Vec<Candidate>,
+}
+
+/// One candidate of the choice.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Candidate {
+    /// `moments`, `traction` or `scale`.
+    pub method: String,
+    /// Each channel on the features that turn as it does.
+    pub symmetric: bool,
+    /// The traction map's cell, mm (traction only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell_mm: Option<f64>,
+    /// The traction map's support (traction only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub support: Option<f64>,
+    /// Per channel, the choosing error in % of the calibrated span.
+    pub pct_range: BTreeMap<String, f64>,
+    /// The score: the sum of the scored channels' %.
+    pub score: f64,
+}
+
+/// The error on indenters left out of the fit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UnseenShape {
+    /// How: each indenter left out in turn, read by a fit on the others.
+    pub by: String,
+    /// Per channel, pooled over the indenters left out.
+    pub channels: BTreeMap<String, ErrorStats>,
+    /// Per channel, the RMS of the error relative to the reading where the force sensor
+    /// reads a tenth of the span or more: the share of a reading an unseen shape moves.
+    pub relative: BTreeMap<String, f64>,
+    /// Per indenter left out.
+    pub shapes: Vec<ShapeError>,
+}
+
+/// The error on one indenter left out.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeError {
+    /// The indenter, as its protocol gives it.
+    pub indenter: String,
+    /// Per channel.
+    pub channels: BTreeMap<String, ErrorStats>,
 }
 
 /// The camera's view.

@@ -4,7 +4,11 @@
 //! field of any run with it ([`wrench`]). The numbers are [`analysis::force_sensor`]'s.
 
 pub mod calibrate;
+mod choose;
+pub mod envelope;
 pub mod file;
+mod fitting;
+mod gather;
 pub mod history;
 pub mod maps;
 pub mod reader;

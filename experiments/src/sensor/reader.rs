@@ -12,6 +12,14 @@ use analysis::force_sensor::scale::ScaleBasis;
 
 /// A calibrated sensor ready to read frames.
 pub struct Reader {
+    /// The camera's view of the gel.
+    pub view: View,
+    /// What the calibration saw (absent in files before version 4).
+    envelope: Option<super::file::Envelope>,
+    /// Its error on indenters left out of the fit.
+    unseen: Option<super::file::UnseenShape>,
+    /// The calibrated range of each channel.
+    ranges: std::collections::BTreeMap<String, [f64; 2]>,
     /// The marker layout.
     pub layout: Layout,
     /// The per-channel model.
@@ -48,6 +56,10 @@ impl Reader {
             .flatten()
             .and_then(|s| super::scale::basis(s, &layout));
         Self {
+            view: file.view.clone(),
+            envelope: file.envelope.clone(),
+            unseen: file.unseen_shape.clone(),
+            ranges: file.ranges.clone(),
             layout,
             model: file.model(),
             traction,
@@ -99,6 +111,63 @@ impl Reader {
                     map: tmap,
                 }
             }
+        }
+    }
+}
+
+/// One frame's wrench: values and standard uncertainties per channel (Fx, Fy, Fz, Tz), and
+/// the frame judged against the calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Wrench {
+    /// Fx, Fy, Fz (N), Tz (N·mm).
+    pub value: Vec<f64>,
+    /// Their standard uncertainties, widened where the frame is outside the calibration.
+    pub sd: Vec<f64>,
+    /// Why the frame is outside the calibration, and the share of its contact in view.
+    pub judgement: super::envelope::Judgement,
+}
+
+impl Reader {
+    /// The wrench of a frame `reading` with its contact `region`, through the gel's load
+    /// `history` at `t_ns`: the model's reading, corrected for a contact running beyond
+    /// the view where its geometry says how far, the hereditary Fz, and uncertainties that
+    /// cover what the calibration did not see ([`super::envelope`]).
+    pub fn wrench(
+        &self,
+        reading: &Reading,
+        region: Option<super::history::Region>,
+        history: &mut super::history::LoadHistory,
+        t_ns: u64,
+    ) -> Wrench {
+        let (mut value, mut sd) = self.model.predict(&reading.features);
+        let mut judgement = match &self.envelope {
+            Some(e) => e.judge(region.as_ref(), &reading.features, &self.view),
+            None => super::envelope::Judgement {
+                outside: Vec::new(),
+                in_view: 1.0,
+                corrected: false,
+            },
+        };
+        // The traction map's support already runs past the view's edge with the contact's
+        // ellipse: it reads the part beyond the view itself.
+        if self.traction.is_some() {
+            judgement.corrected = false;
+        }
+        super::envelope::correct(&mut value, &judgement);
+        history.wrench(t_ns, &mut value, region);
+        if self.envelope.is_some() {
+            super::envelope::widen(
+                &value,
+                &mut sd,
+                &mut judgement,
+                self.unseen.as_ref(),
+                &self.ranges,
+            );
+        }
+        Wrench {
+            value,
+            sd,
+            judgement,
         }
     }
 }

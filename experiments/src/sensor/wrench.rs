@@ -38,6 +38,12 @@ pub struct WrenchRow {
     pub tz_sd_nmm: f64,
     /// Share of the sensor's markers measured in this frame (the rest filled).
     pub measured_share: f64,
+    /// Why the frame is outside the calibration, `;`-separated (`shape`, `size`, `place`,
+    /// `view_edge`, `field`, `load`); empty inside it. The uncertainties are widened for
+    /// each.
+    pub outside_calibration: String,
+    /// The share of the contact the view sees (1 where it is whole in view).
+    pub contact_in_view: f64,
 }
 
 /// The wrench of every frame of `frames`, whose reference markers are frame 0's; `origin`
@@ -76,22 +82,24 @@ pub(crate) fn wrench_of_frames(
             let region = history.region(&f.field, f.contact);
             let reading = reader.read(&f.field, region, &map);
             let share = reading.measured_share;
-            let (mut v, sd) = reader.model.predict(&reading.features);
-            history.wrench(f.t_ns, &mut v, region);
+            let w = reader.wrench(&reading, region, &mut history, f.t_ns);
+            let (v, sd) = (&w.value, &w.sd);
             let at = |x: &[f64], i: usize| x.get(i).copied().unwrap_or(f64::NAN);
             WrenchRow {
                 frame: f.frame,
                 t_ns: (f.t_ns > 0 || f.frame == 0).then_some(f.t_ns),
                 step: f.step,
-                fx_n: at(&v, 0),
-                fy_n: at(&v, 1),
-                fz_n: at(&v, 2),
-                tz_nmm: at(&v, 3),
-                fx_sd_n: at(&sd, 0),
-                fy_sd_n: at(&sd, 1),
-                fz_sd_n: at(&sd, 2),
-                tz_sd_nmm: at(&sd, 3),
+                fx_n: at(v, 0),
+                fy_n: at(v, 1),
+                fz_n: at(v, 2),
+                tz_nmm: at(v, 3),
+                fx_sd_n: at(sd, 0),
+                fy_sd_n: at(sd, 1),
+                fz_sd_n: at(sd, 2),
+                tz_sd_nmm: at(sd, 3),
                 measured_share: share,
+                outside_calibration: w.judgement.reasons(),
+                contact_in_view: w.judgement.in_view,
             }
         })
         .collect())

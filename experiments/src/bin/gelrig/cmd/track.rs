@@ -305,6 +305,26 @@ impl Cmd {
                     peak.frame
                 );
             }
+            let outside: Vec<&experiments::sensor::WrenchRow> = rows
+                .iter()
+                .filter(|r| !r.outside_calibration.is_empty())
+                .collect();
+            if !outside.is_empty() {
+                let mut why: Vec<&str> = outside
+                    .iter()
+                    .flat_map(|r| r.outside_calibration.split(';'))
+                    .collect();
+                why.sort_unstable();
+                why.dedup();
+                out!(
+                    "{} of {} frames outside the calibration ({}): their uncertainties are \
+                     widened by what the calibration measured on shapes it never saw \
+                     (`outside_calibration` in wrench.csv)",
+                    outside.len(),
+                    rows.len(),
+                    why.join(", ")
+                );
+            }
             out!("wrote {}", path.display());
         }
         if let Some(dir) = &self.traction {

@@ -8,10 +8,10 @@
 
 use std::hint::black_box;
 
-use analysis::field::MarkerField;
 use analysis::force_sensor::Layout;
 use analysis::force_sensor::ridge::LinearModel;
 use criterion::{Criterion, criterion_group, criterion_main};
+use tracking::field::MarkerField;
 
 fn grid(nx: usize, ny: usize) -> Vec<[f64; 2]> {
     let (sx, sy) = (600.0 / nx as f64, 440.0 / ny as f64);

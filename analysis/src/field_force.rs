@@ -12,7 +12,7 @@
 
 use mechanics::response::Field;
 
-use crate::field::MarkerField;
+use tracking::field::MarkerField;
 
 /// Which component of the field is fitted.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -82,7 +82,7 @@ pub fn camera_timing(frames: &[FrameTime]) -> CameraTiming {
         duplicated,
         matched: matched.len(),
         interpolated: matched.iter().filter(|&&n| n == 0).count(),
-        median_samples: crate::tracking::median(&mut samples),
+        median_samples: tracking::median(&mut samples),
         errors_ms: frames
             .iter()
             .filter_map(|f| f.truth_t_ns.map(|t| (f.t_ns as f64 - t as f64) * 1e-6))

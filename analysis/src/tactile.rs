@@ -23,7 +23,7 @@
 //! small to judge and counts as `stick`. Thresholds were set on dry runs against the
 //! simulator's true stick fraction (BENCHMARKS.md, "Grasp trials").
 
-use crate::field::MarkerField;
+use tracking::field::MarkerField;
 
 /// Slip state of a grasp.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]

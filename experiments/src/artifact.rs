@@ -5,7 +5,7 @@
 use std::path::Path;
 
 /// Writes `value` as YAML to `path` atomically; `Err` is the reason.
-pub(crate) fn write_yaml<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), String> {
+pub fn write_yaml<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), String> {
     let text = serde_yaml::to_string(value).map_err(|e| e.to_string())?;
     let tmp = path.with_extension("yaml.partial");
     std::fs::write(&tmp, text).map_err(|e| e.to_string())?;

@@ -3,8 +3,8 @@
 //! the server tracks the latest frame against the run's first one when the page asks (and
 //! only then: a run nobody watches tracks nothing), once per frame.
 
-use analysis::field::MarkerField;
-use analysis::tracking::{ContactParams, Method, Pipeline, RgbView, TrackParams};
+use tracking::field::MarkerField;
+use tracking::{ContactParams, Method, Pipeline, RgbView, TrackParams};
 
 use crate::board::{FrameImage, Overlay};
 
@@ -40,7 +40,7 @@ pub(crate) fn track(reference: &FrameImage, frame: &FrameImage) -> Overlay {
         let mut p = Pipeline::new(rv, &TrackParams::default(), Method::Centroid)?;
         p.enable_contact(rv, ContactParams::default())?;
         p.track(fv)?;
-        Ok::<_, analysis::tracking::TrackError>(p)
+        Ok::<_, tracking::TrackError>(p)
     })();
     match result {
         Ok(p) => {

@@ -27,12 +27,12 @@ fn travel_margin(info: &AxisInfo) -> f64 {
 const FORCE_RANGE_FACTOR: f64 = 20.0;
 
 /// An axis whose positions are checked.
-pub(crate) struct CheckedAxis {
+pub struct CheckedAxis {
     inner: Box<dyn Axis>,
 }
 
 impl CheckedAxis {
-    pub(crate) fn new(inner: Box<dyn Axis>) -> Self {
+    pub fn new(inner: Box<dyn Axis>) -> Self {
         Self { inner }
     }
 }
@@ -95,13 +95,13 @@ impl Axis for CheckedAxis {
 }
 
 /// A force sensor whose samples are checked.
-pub(crate) struct CheckedForce {
+pub struct CheckedForce {
     inner: Box<dyn ForceSensor>,
     last_t_ns: Option<u64>,
 }
 
 impl CheckedForce {
-    pub(crate) fn new(inner: Box<dyn ForceSensor>) -> Self {
+    pub fn new(inner: Box<dyn ForceSensor>) -> Self {
         Self {
             inner,
             last_t_ns: None,

@@ -4,23 +4,26 @@
 //! grasping jig), a six-axis force/torque sensor and a camera. This crate defines one trait
 //! per kind of device ([`Axis`], [`ForceSensor`], [`Camera`], [`Disturber`]), the rig file
 //! that binds roles to drivers ([`config::RigConfig`]), the run's single timebase
-//! ([`Clock`]), and a simulated bench ([`sim`]) whose devices share one simulated elastomer.
+//! ([`Clock`]), and twins of the real devices speaking their wire protocols over real
+//! transports ([`twins`]).
 //!
-//! It knows nothing about protocols: the `experiments` crate decides what to move and when,
-//! and opens only the devices a protocol uses ([`open`]). Quantities with units, shared
-//! with the protocol schema, live in [`units`].
+//! It knows nothing about protocols or physics: the runner decides what to move and when,
+//! the simulated bench (`simbench`) implements these traits over a simulated elastomer and
+//! opens a rig file's devices for a run. Quantities with units, shared with the protocol
+//! schema, live in `records` ([`units`]).
 
-mod checked;
+pub mod checked;
 pub mod clock;
 pub mod clock_sync;
 pub mod config;
 pub mod device;
 pub mod drivers;
 pub mod error;
-pub mod open;
-pub mod sim;
 pub mod twins;
-pub mod units;
+
+/// Quantities with units ([`records::units`]), shared with the protocol schema.
+pub use records::units;
+pub use records::{lock, quote};
 
 pub use checked::{implausible_position, implausible_sample};
 pub use clock::{Clock, ClockMode};
@@ -30,46 +33,3 @@ pub use device::{
     Wrench,
 };
 pub use error::RigError;
-pub use open::{OpenRequest, OpenedDevice, Rig, open};
-
-/// Device text as it may appear in a message: a garbled reply can be megabytes of
-/// anything, and a message quoting it whole would flood the terminal, `run.yaml` and the
-/// journal. At most 120 characters, control characters escaped, and the full length said
-/// when cut.
-pub fn quote(text: &str) -> String {
-    const MAX_CHARS: usize = 120;
-    let mut out = String::new();
-    for (shown, c) in text.chars().enumerate() {
-        if shown == MAX_CHARS {
-            out.push_str(&format!("… ({} bytes)", text.len()));
-            return out;
-        }
-        if c.is_control() {
-            out.extend(c.escape_default());
-        } else {
-            out.push(c);
-        }
-    }
-    out
-}
-
-/// Locks a mutex shared between simulated devices, recovering from poisoning: a panic in
-/// one device must not take the rest of the bench (and the run's data) down with it.
-pub fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn quotes_are_short_and_printable() {
-        assert_eq!(super::quote("1TPNaN"), "1TPNaN");
-        assert_eq!(super::quote("a\r\n\u{7}b"), "a\\r\\n\\u{7}b");
-        let flood = "x".repeat(4 << 20);
-        let q = super::quote(&flood);
-        assert!(
-            q.chars().count() < 140 && q.ends_with("(4194304 bytes)"),
-            "{q}"
-        );
-    }
-}

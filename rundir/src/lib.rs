@@ -10,6 +10,7 @@
 //! `markers.csv` and `contact.csv` once tracked; `run.reserve` while running.
 
 pub mod export;
+pub mod listing;
 pub mod read;
 pub mod resumed;
 mod ros2;

@@ -553,7 +553,7 @@ fn absurd_or_flooded_replies_are_device_errors_not_data() {
                 .enable_all()
                 .build()
                 .unwrap();
-            let probes = rt.block_on(experiments::bench::probe(&rig_cfg));
+            let probes = rt.block_on(simbench::bench::probe(&rig_cfg));
             let shear = probes.iter().find(|p| p.role == "shear").unwrap();
             assert!(
                 !shear.ok && shear.detail.contains("not a number"),

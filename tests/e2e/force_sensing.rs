@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use experiments::sensor::{SensorFile, calibrate};
+use sensing::sensor::{SensorFile, calibrate};
 
 use crate::support::{csv_rows, gelrig, load_ok, protocol, run_virtual, shared_dry_run};
 
@@ -29,9 +29,9 @@ pub(crate) fn portable_sensor() -> SensorFile {
 
 /// The field moments fitted on every feature (the default before the choice by indenters left
 /// out): the reading these tests' figures were measured with.
-pub(crate) fn moments_on_every_feature() -> experiments::sensor::calibrate::CalibrateOptions {
-    experiments::sensor::calibrate::CalibrateOptions {
-        method: Some(experiments::sensor::calibrate::Method::Moments),
+pub(crate) fn moments_on_every_feature() -> sensing::sensor::calibrate::CalibrateOptions {
+    sensing::sensor::calibrate::CalibrateOptions {
+        method: Some(sensing::sensor::calibrate::Method::Moments),
         symmetric: Some(false),
         ..Default::default()
     }
@@ -52,8 +52,8 @@ pub(crate) fn portable_traction_sensor() -> SensorFile {
     static SENSOR: std::sync::OnceLock<SensorFile> = std::sync::OnceLock::new();
     SENSOR
         .get_or_init(|| {
-            let opts = experiments::sensor::calibrate::CalibrateOptions {
-                method: Some(experiments::sensor::calibrate::Method::Traction),
+            let opts = sensing::sensor::calibrate::CalibrateOptions {
+                method: Some(sensing::sensor::calibrate::Method::Traction),
                 cell_mm: Some(1.5),
                 support: Some(1.1),
                 symmetric: Some(false),
@@ -66,8 +66,8 @@ pub(crate) fn portable_traction_sensor() -> SensorFile {
 /// The field moments calibrated on `runs` with each channel on the features that turn as it
 /// does (`gelrig calibrate --symmetric`).
 pub(crate) fn symmetric_sensor(runs: &[PathBuf]) -> SensorFile {
-    let opts = experiments::sensor::calibrate::CalibrateOptions {
-        method: Some(experiments::sensor::calibrate::Method::Moments),
+    let opts = sensing::sensor::calibrate::CalibrateOptions {
+        method: Some(sensing::sensor::calibrate::Method::Moments),
         symmetric: Some(true),
         ..Default::default()
     };
@@ -77,7 +77,7 @@ pub(crate) fn symmetric_sensor(runs: &[PathBuf]) -> SensorFile {
 /// `gelrig report RUN --sensor` of `run` with `sensor` (its file at `path`) into `out`: the
 /// GelSight's Fz error in % of the calibrated span, as `summary.json` gives it.
 pub(crate) fn reported_fz_pct(run: &Path, sensor: &SensorFile, path: &Path, out: &Path) -> f64 {
-    experiments::report::report_with_sensor(run, Some(out), Some((sensor, path))).unwrap();
+    report::report_with_sensor(run, Some(out), Some((sensor, path))).unwrap();
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     summary["gelsight_force"]["fz"]["pct_range"]
@@ -117,7 +117,7 @@ fn calibrated_on_one_seed_the_field_reads_force_on_another_within_two_percent() 
         ("portable-rotation", &["tz", "fz"][..]),
     ] {
         let dir = dry(name, 2, &tmp.path().join(name));
-        experiments::report::report_with_sensor(&dir, None, Some((&back, &path))).unwrap();
+        report::report_with_sensor(&dir, None, Some((&back, &path))).unwrap();
         let summary: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(dir.join("report/summary.json")).unwrap(),
         )
@@ -228,7 +228,7 @@ fn a_sensor_file_is_refused_where_it_does_not_belong() {
     for (bad, says) in [
         (
             text.replace(
-                &format!("version: {}", experiments::sensor::file::VERSION),
+                &format!("version: {}", sensing::sensor::file::VERSION),
                 "version: 9",
             ),
             "version Some(9)",
@@ -275,8 +275,8 @@ fn the_traction_map_reads_unseen_punches_within_five_percent() {
         .iter()
         .map(|n| dry(n, 1, &tmp.path().join("cal")))
         .collect();
-    let opts = experiments::sensor::calibrate::CalibrateOptions {
-        method: Some(experiments::sensor::calibrate::Method::Traction),
+    let opts = sensing::sensor::calibrate::CalibrateOptions {
+        method: Some(sensing::sensor::calibrate::Method::Traction),
         cell_mm: Some(1.0),
         support: Some(1.1),
         symmetric: Some(false),
@@ -325,7 +325,7 @@ fn the_traction_map_reads_unseen_punches_within_five_percent() {
             assert!(t.ellipse);
             let v2 = SensorFile {
                 version: 2,
-                traction: Some(experiments::sensor::file::TractionSettings {
+                traction: Some(sensing::sensor::file::TractionSettings {
                     ellipse: false,
                     ..t
                 }),
@@ -419,8 +419,8 @@ fn the_real_mini_sequence_gets_nominal_traction_maps() {
 fn the_scale_fit_calibrates_and_its_file_carries_the_reference_fields() {
     let tmp = tempfile::tempdir().unwrap();
     let runs = portable_runs();
-    let opts = experiments::sensor::calibrate::CalibrateOptions {
-        method: Some(experiments::sensor::calibrate::Method::Scale),
+    let opts = sensing::sensor::calibrate::CalibrateOptions {
+        method: Some(sensing::sensor::calibrate::Method::Scale),
         symmetric: Some(false),
         ..Default::default()
     };
@@ -437,7 +437,7 @@ fn the_scale_fit_calibrates_and_its_file_carries_the_reference_fields() {
     sensor.write(&path).unwrap();
     assert_eq!(SensorFile::read(&path).unwrap(), sensor);
     let dir = dry("portable-shear", 2, tmp.path());
-    experiments::report::report_with_sensor(&dir, None, Some((&sensor, &path))).unwrap();
+    report::report_with_sensor(&dir, None, Some((&sensor, &path))).unwrap();
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("report/summary.json")).unwrap())
             .unwrap();
@@ -473,7 +473,7 @@ fn the_box_sensor_calibrated_with_its_twist_reads_its_torque() {
     let path = tmp.path().join("box.yaml");
     sensor.write(&path).unwrap();
     let dir = dry("box-rotation", 2, &tmp.path().join("test"));
-    experiments::report::report_with_sensor(&dir, None, Some((&sensor, &path))).unwrap();
+    report::report_with_sensor(&dir, None, Some((&sensor, &path))).unwrap();
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("report/summary.json")).unwrap())
             .unwrap();
@@ -490,7 +490,7 @@ fn the_box_sensor_calibrated_with_its_twist_reads_its_torque() {
 /// a cell too small to build is refused on the command line, naming the option.
 #[test]
 fn the_traction_maps_cell_is_the_one_with_the_smallest_held_out_error() {
-    use experiments::sensor::calibrate::{CELLS, CalibrateOptions, Method};
+    use sensing::sensor::calibrate::{CELLS, CalibrateOptions, Method};
     let runs = portable_runs();
     let opts = |cell_mm| CalibrateOptions {
         method: Some(Method::Traction),

@@ -2,7 +2,7 @@
 //! in, through the can's twist, and as a shape the calibration never saw (the unseen
 //! can, calibrated on flat-circle and sphere runs).
 
-use experiments::sensor::{SensorFile, calibrate};
+use sensing::sensor::{SensorFile, calibrate};
 
 use crate::force_sensing::{
     portable_runs, portable_sensor, portable_traction_sensor, reported_fz_pct, symmetric_sensor,
@@ -33,7 +33,7 @@ fn a_protocol_records_the_gelsights_force_beside_the_force_sensor() {
         o.message
     );
     // The run keeps the sensor it read with.
-    let kept = SensorFile::read(&o.dir.join(experiments::runner::GELSIGHT_SENSOR_FILE)).unwrap();
+    let kept = SensorFile::read(&o.dir.join(runner::GELSIGHT_SENSOR_FILE)).unwrap();
     assert_eq!(kept, portable_traction_sensor());
     let rows = csv_rows(&o.dir.join("tactile.csv"));
     let steps = csv_rows(&o.dir.join("steps.csv"));
@@ -205,7 +205,7 @@ fn a_grasp_calibrated_in_its_jig_reads_the_relaxing_squeeze() {
     };
     let peak = fz.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     let rmse_pct = |s: &SensorFile| {
-        let rows = experiments::sensor::read_wrench(s, &test).unwrap();
+        let rows = sensing::sensor::read_wrench(s, &test).unwrap();
         let e: Vec<f64> = rows
             .iter()
             .filter_map(|r| Some(r.fz_n - nano_at(r.t_ns? as f64)))
@@ -247,7 +247,7 @@ fn a_symmetric_sensor_keeps_the_cans_twist_out_of_the_squeeze() {
     };
     let median_fz = |s: &SensorFile, label: &str| {
         let step = step_of(label);
-        let mut v: Vec<f64> = experiments::sensor::read_wrench(s, &o.dir)
+        let mut v: Vec<f64> = sensing::sensor::read_wrench(s, &o.dir)
             .unwrap()
             .iter()
             .filter(|r| r.step == step)
@@ -303,8 +303,8 @@ fn calibrated_on_flat_and_sphere_runs_the_sensor_reads_the_unseen_can() {
     };
     let traction = calibrate(
         &runs,
-        &experiments::sensor::calibrate::CalibrateOptions {
-            method: Some(experiments::sensor::calibrate::Method::Traction),
+        &sensing::sensor::calibrate::CalibrateOptions {
+            method: Some(sensing::sensor::calibrate::Method::Traction),
             symmetric: Some(true),
             ..Default::default()
         },
@@ -313,8 +313,8 @@ fn calibrated_on_flat_and_sphere_runs_the_sensor_reads_the_unseen_can() {
     let moments = symmetric_sensor(&runs);
     let scale = calibrate(
         &runs,
-        &experiments::sensor::calibrate::CalibrateOptions {
-            method: Some(experiments::sensor::calibrate::Method::Scale),
+        &sensing::sensor::calibrate::CalibrateOptions {
+            method: Some(sensing::sensor::calibrate::Method::Scale),
             symmetric: Some(false),
             ..Default::default()
         },

@@ -6,8 +6,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use experiments::sensor::calibrate::{CalibrateOptions, Method};
-use experiments::sensor::{SensorFile, calibrate, read_wrench};
+use sensing::sensor::calibrate::{CalibrateOptions, Method};
+use sensing::sensor::{SensorFile, calibrate, read_wrench};
 
 use crate::support::{csv_rows, gelrig, load_ok, protocol, run_virtual, shared_dry_run};
 
@@ -35,7 +35,7 @@ fn calibrate_cli(runs: &[PathBuf], out: &Path) -> String {
 /// for `run`.
 fn reported(run: &Path, sensor: &SensorFile, path: &Path) -> serde_json::Value {
     let out = run.join("report-unseen");
-    experiments::report::report_with_sensor(run, Some(&out), Some((sensor, path))).unwrap();
+    report::report_with_sensor(run, Some(&out), Some((sensor, path))).unwrap();
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     summary["gelsight_force"].clone()

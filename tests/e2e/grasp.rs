@@ -207,7 +207,7 @@ fn regrip_on_incipient_slip_keeps_the_can_in_hand() {
         assert!(p > -2.4 && p < -0.05, "loosened to {p}");
         assert!(fz > 0.7, "squeeze at the stop {fz}");
     }
-    let written = experiments::report::report(&dir, None).unwrap();
+    let written = report::report(&dir, None).unwrap();
     let outcomes: Vec<&str> = written.summary["trials"]
         .as_array()
         .unwrap()
@@ -221,7 +221,7 @@ fn regrip_on_incipient_slip_keeps_the_can_in_hand() {
 fn the_report_scores_each_trial_against_force_and_truth() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = run_trials("lifting-can-slip", "3", 2, 2, tmp.path());
-    let written = experiments::report::report(&dir, None).unwrap();
+    let written = report::report(&dir, None).unwrap();
     let s = &written.summary;
     assert!(written.sections.iter().any(|t| t == "Grasp trials"));
     let trials = s["trials"].as_array().unwrap();

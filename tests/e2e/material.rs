@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use experiments::material::MaterialFile;
+use sensing::material::MaterialFile;
 
 use crate::support::{
     csv_rows, gelrig, load_text, root, run_virtual, shared_dry_run, shipped_text,

@@ -274,7 +274,7 @@ fn probe_tells_a_busy_drive_from_a_silent_one() {
             f.busy = busy;
             f.silent = silent;
         }
-        let probes = rt.block_on(experiments::bench::probe(&rig));
+        let probes = rt.block_on(simbench::bench::probe(&rig));
         let p = probes.iter().find(|p| p.role == "rotation").unwrap();
         assert!(!p.ok, "{p:?}");
         assert_eq!(p.silent, silent, "{p:?}");

@@ -161,7 +161,7 @@ fn a_relaxation_slower_than_the_settle_is_waited_for_not_claimed_at_first() {
 fn the_report_replays_each_settle_rule_on_the_runs_own_relaxation() {
     let run = crate::support::shared_dry_run("box-normal-flat");
     let tmp = tempfile::tempdir().unwrap();
-    experiments::report::report_with_sensor(&run, Some(tmp.path()), None).unwrap();
+    report::report_with_sensor(&run, Some(tmp.path()), None).unwrap();
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(tmp.path().join("summary.json")).unwrap())
             .unwrap();

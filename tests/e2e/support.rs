@@ -5,10 +5,10 @@ use std::process::Command;
 use std::sync::OnceLock;
 
 use experiments::plan::{Plan, plan};
-use experiments::progress::ProgressMode;
 use experiments::protocol::{Loaded, load};
-use experiments::runner::{Cancel, RunOutcome, RunRequest, run};
 use rig::ClockMode;
+use runner::progress::ProgressMode;
+use runner::{Cancel, RunOutcome, RunRequest, run};
 
 /// The workspace root.
 pub(crate) fn root() -> PathBuf {
@@ -62,7 +62,7 @@ pub(crate) fn gelrig() -> PathBuf {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let mut cmd = Command::new(cargo);
         cmd.current_dir(root())
-            .args(["build", "-q", "-p", "experiments", "--bin", "gelrig"]);
+            .args(["build", "-q", "-p", "gelrig", "--bin", "gelrig"]);
         if release {
             cmd.arg("--release");
         }
@@ -126,7 +126,7 @@ pub(crate) fn run_virtual(
 ) -> (RunOutcome, Plan) {
     let plan = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
     let Some(cancel_after_s) = cancel_after_s else {
-        let outcome = experiments::runner::run_virtual_blocking(loaded, out, seed).unwrap();
+        let outcome = runner::run_virtual_blocking(loaded, out, seed).unwrap();
         return (outcome, plan);
     };
     let rt = tokio::runtime::Builder::new_current_thread()
@@ -285,7 +285,7 @@ pub(crate) fn run_on_real_rig(
     rig: &Path,
     p: &Path,
     meanwhile: impl FnOnce(std::path::PathBuf) + Send + 'static,
-) -> experiments::runner::RunOutcome {
+) -> runner::RunOutcome {
     let loaded = experiments::protocol::load(p, Some(rig)).unwrap_or_else(|d| {
         panic!(
             "{}",
@@ -305,19 +305,19 @@ pub(crate) fn run_on_real_rig(
         .build()
         .unwrap();
     let outcome = rt
-        .block_on(experiments::runner::run(
-            experiments::runner::RunRequest {
+        .block_on(runner::run(
+            runner::RunRequest {
                 loaded: &loaded,
                 plan: &plan,
                 out,
                 seed: 0,
                 clock: rig::ClockMode::Monotonic,
-                progress: experiments::progress::ProgressMode::Quiet,
+                progress: runner::progress::ProgressMode::Quiet,
                 live: None,
                 record_mcap: false,
                 resume: None,
             },
-            experiments::runner::Cancel::new(),
+            runner::Cancel::new(),
         ))
         .unwrap();
     side.join().unwrap();

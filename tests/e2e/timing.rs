@@ -53,7 +53,7 @@ fn frames_are_stamped_at_their_exposure_and_carry_its_force() {
         "the 5 N squeeze is in frames.csv"
     );
     // The report's timing section says the same, and the manifest how it was done.
-    let written = experiments::report::report(&o.dir, None).unwrap();
+    let written = report::report(&o.dir, None).unwrap();
     assert!(written.sections.iter().any(|s| s == "Camera timing"));
     let t = &written.summary["camera_timing"];
     assert_eq!(t["duplicated"], 0);

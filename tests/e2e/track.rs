@@ -599,10 +599,10 @@ fn write_png(path: &Path, (w, h): (u32, u32), px: impl Fn(u32, u32) -> [u8; 3]) 
 /// returns their paths and every frame's exact marker centres.
 fn write_scene(
     dir: &Path,
-    scene: &rig::sim::Scene,
-    motion: &rig::sim::Motion,
+    scene: &simbench::Scene,
+    motion: &simbench::Motion,
 ) -> (Vec<PathBuf>, Vec<Vec<[f64; 2]>>) {
-    let look = rig::sim::Look::default();
+    let look = simbench::Look::default();
     let (w, h) = scene.size();
     let (mut paths, mut truth) = (Vec::new(), Vec::new());
     for k in 0..motion.frames() {
@@ -675,7 +675,7 @@ fn track_scene(
 
 #[test]
 fn a_whole_spacing_jump_or_an_ambiguous_pan_is_a_frame_not_a_failure() {
-    use rig::sim::{MarkerLayout, Motion, Scene};
+    use simbench::{MarkerLayout, Motion, Scene};
     let grid = MarkerLayout::Grid {
         columns: 18,
         rows: 16,

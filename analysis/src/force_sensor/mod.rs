@@ -28,7 +28,7 @@ pub mod ridge;
 pub mod scale;
 pub mod traction;
 
-use crate::field::MarkerField;
+use tracking::field::MarkerField;
 
 /// The wrench channels, in the order of every array here.
 pub const CHANNELS: [&str; 4] = ["fx_n", "fy_n", "fz_n", "tz_nmm"];

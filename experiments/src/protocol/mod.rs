@@ -6,6 +6,7 @@
 
 pub mod compile;
 pub mod material;
+pub mod material_file;
 mod overrides;
 pub mod schema;
 pub mod shipped;
@@ -14,7 +15,7 @@ pub mod source;
 use std::path::{Path, PathBuf};
 
 use rig::config::RigConfig;
-use rig::sim::{MarkerLayout, PlantSpec};
+use simbench::{MarkerLayout, PlantSpec};
 
 use crate::diag::{Diagnostic, Severity};
 use compile::{Budget, Compiled};
@@ -457,9 +458,9 @@ fn read_material(path: &Path, text: &str, protocol: &mut Protocol) -> Result<(),
         .key("sensor")
         .key("material")
         .key("from");
-    let m = crate::material::MaterialFile::read(&file).map_err(|e| {
+    let m = material_file::MaterialFile::read(&file).map_err(|e| {
         let detail = match &e {
-            crate::material::MaterialFileError::Read { path, detail, .. } => {
+            material_file::MaterialFileError::Read { path, detail, .. } => {
                 format!("the material file {}: {detail}", path.display())
             }
             other => other.to_string(),
@@ -572,6 +573,6 @@ pub fn plant_spec(p: &Protocol, compiled: &Compiled) -> Result<PlantSpec, String
         object_mass_g: p.object.as_ref().map(|o| o.mass.g()),
         max_depth_mm: compiled.max_depth_mm(0.5 * h).clamp(0.05 * h, 0.95 * h),
         kinetic_friction: m.kinetic_friction.unwrap_or(0.9 * m.friction),
-        quality: rig::sim::Quality::default(),
+        quality: simbench::Quality::default(),
     })
 }

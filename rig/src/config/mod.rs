@@ -238,7 +238,7 @@ pub struct SimConfig {
     #[serde(default)]
     pub pressing_friction: Option<bool>,
     /// Press flat punches into a neo-Hookean gel at finite strain: the force times the
-    /// reference's stiffening (`mechanics::finite_strain`; 29 % at 20 % strain on the
+    /// reference's stiffening (the mechanics crate's `finite_strain`; 29 % at 20 % strain on the
     /// portable punch; the reference reaches 20 % (box) and 30 % (portable) strain, beyond
     /// which it is extrapolated). Default false: small strain, as the thesis measured its
     /// flat punch (force linear in depth). The same as `contact: {finite_strain}`.

@@ -256,14 +256,41 @@ impl<W: Write + Seek> Ros2Mcap<W> {
     }
 }
 
-/// The rotary axes of a rig file (their positions are degrees; the others mm).
+/// The rotary axes of a rig file (their positions are degrees; the others mm): those whose
+/// travel a rig file writes in an angle. Only the travel is read, so the run directory's
+/// reader needs nothing of the device layer.
 pub(crate) fn rotary_axes(rig_yaml: &str) -> Vec<String> {
-    rig::config::RigConfig::from_yaml_str(rig_yaml)
+    #[derive(serde::Deserialize)]
+    struct Axis {
+        travel: [records::units::AxisQuantity; 2],
+    }
+    #[derive(serde::Deserialize)]
+    struct Rig {
+        #[serde(default)]
+        axes: BTreeMap<String, Axis>,
+    }
+    /// Only the axes' travels, whatever else the file holds.
+    fn axes_only(text: &str) -> Option<Rig> {
+        let value: serde_yaml::Value = serde_yaml::from_str(text).ok()?;
+        let axes = value.get("axes")?.as_mapping()?;
+        let mut kept = serde_yaml::Mapping::new();
+        for (role, axis) in axes {
+            if let Some(travel) = axis.get("travel") {
+                let mut m = serde_yaml::Mapping::new();
+                m.insert("travel".into(), travel.clone());
+                kept.insert(role.clone(), serde_yaml::Value::Mapping(m));
+            }
+        }
+        let mut top = serde_yaml::Mapping::new();
+        top.insert("axes".into(), serde_yaml::Value::Mapping(kept));
+        serde_yaml::from_value(serde_yaml::Value::Mapping(top)).ok()
+    }
+    axes_only(rig_yaml)
         .map(|rig| {
             rig.axes
-                .iter()
-                .filter(|(_, a)| a.unit() == rig::units::AxisUnit::Deg)
-                .map(|(r, _)| r.name().to_string())
+                .into_iter()
+                .filter(|(_, a)| a.travel[0].natural_unit() == records::units::AxisUnit::Deg)
+                .map(|(r, _)| r)
                 .collect()
         })
         .unwrap_or_default()

@@ -119,7 +119,7 @@ struct Staging(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
 
 impl Write for Staging {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        rig::lock(&self.0).extend_from_slice(buf);
+        records::lock(&self.0).extend_from_slice(buf);
         Ok(buf.len())
     }
 
@@ -188,7 +188,7 @@ impl CsvFile {
                 source,
             })?;
         self.encoder.flush().map_err(io(path))?;
-        Ok(std::mem::take(&mut *rig::lock(&self.staged.0)))
+        Ok(std::mem::take(&mut *records::lock(&self.staged.0)))
     }
 
     /// Writes one row through to the OS, whole or not at all.

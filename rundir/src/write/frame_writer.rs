@@ -15,7 +15,7 @@ use std::thread::JoinHandle;
 
 use image::ImageEncoder;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
-use rig::Frame;
+use records::Frame;
 
 use super::files::{CsvFile, write_new};
 use super::rows::{FrameForce, FrameRow, MarkerTruthRow, round6};

@@ -122,7 +122,7 @@ pub struct Manifest {
     /// How each device's times were put on the run's timebase (`force`, `camera`), as of
     /// the end of the run.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub timing: BTreeMap<String, rig::DeviceTiming>,
+    pub timing: BTreeMap<String, records::DeviceTiming>,
 }
 
 /// One continuation of a run by `gelrig resume`.
@@ -166,22 +166,22 @@ pub fn run_file(dir: &Path, name: &str) -> Result<std::path::PathBuf, String> {
     if name.is_empty() || !rel.components().all(|c| matches!(c, Component::Normal(_))) {
         return Err(format!(
             "`{}` is not a path inside the run directory",
-            rig::quote(name)
+            records::quote(name)
         ));
     }
     let inside = |p: &Path| {
         p.canonicalize()
-            .map_err(|e| format!("`{}`: {e}", rig::quote(name)))
+            .map_err(|e| format!("`{}`: {e}", records::quote(name)))
     };
     let (root, file) = (inside(dir)?, inside(&dir.join(rel))?);
     if !file.starts_with(&root) {
         return Err(format!(
             "`{}` leads outside the run directory",
-            rig::quote(name)
+            records::quote(name)
         ));
     }
     if !file.is_file() {
-        return Err(format!("`{}` is not a regular file", rig::quote(name)));
+        return Err(format!("`{}` is not a regular file", records::quote(name)));
     }
     Ok(file)
 }

@@ -29,7 +29,7 @@ mod rows;
 use std::fs::{self, File, OpenOptions};
 use std::path::{Path, PathBuf};
 
-use rig::{ForceSample, Frame, SimTruth, Wrench};
+use records::{ForceSample, Frame, SimTruth, Wrench};
 
 pub use files::write_atomic;
 use files::{Appender, CsvFile, Reserve, io};

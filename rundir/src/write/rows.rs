@@ -1,6 +1,6 @@
 //! The rows of the run directory's CSV files.
 
-use rig::Wrench;
+use records::Wrench;
 use serde::{Deserialize, Serialize};
 
 /// One row of `steps.csv`.

@@ -9,9 +9,7 @@ use std::path::Path;
 use criterion::{Criterion, criterion_group, criterion_main};
 use experiments::plan::plan;
 use experiments::protocol::load;
-use rig::ClockMode;
-use runner::progress::ProgressMode;
-use runner::{Cancel, RunRequest, run};
+use runner::{Cancel, Launch, run};
 
 fn dry_run(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -27,7 +25,7 @@ fn dry_run(c: &mut Criterion) {
         let Ok(loaded) = load(&path, None) else {
             panic!("{name} does not load");
         };
-        let p = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+        let _p = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
         group.bench_function(name, |b| {
             b.iter(|| {
                 let out = tempfile::tempdir().expect("temp dir");
@@ -37,20 +35,7 @@ fn dry_run(c: &mut Criterion) {
                     .build()
                     .expect("runtime");
                 let outcome = rt
-                    .block_on(run(
-                        RunRequest {
-                            loaded: &loaded,
-                            plan: &p,
-                            out: out.path().to_path_buf(),
-                            seed: 0,
-                            clock: ClockMode::Virtual,
-                            progress: ProgressMode::Quiet,
-                            live: None,
-                            record_mcap: false,
-                            resume: None,
-                        },
-                        Cancel::new(),
-                    ))
+                    .block_on(run(Launch::new(&loaded).out(out.path()), Cancel::new()))
                     .expect("run directory");
                 assert_eq!(outcome.status, rundir::write::Status::Completed);
             })

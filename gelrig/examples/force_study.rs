@@ -4,10 +4,10 @@
 //! calibration never saw — with the per-frame cost of the reading.
 //!
 //! ```text
-//! cargo run --release -p experiments --example force_study            # methods and shapes
-//! cargo run --release -p experiments --example force_study -- cells   # traction grid
-//! cargo run --release -p experiments --example force_study -- grasp   # dynamic, can trials
-//! cargo run --release -p experiments --example force_study -- support # the can by cell, support
+//! cargo run --release -p gelrig --example force_study            # methods and shapes
+//! cargo run --release -p gelrig --example force_study -- cells   # traction grid
+//! cargo run --release -p gelrig --example force_study -- grasp   # dynamic, can trials
+//! cargo run --release -p gelrig --example force_study -- support # the can by cell, support
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -134,13 +134,13 @@ fn grasp_errors(sensor: &SensorFile, dir: &Path) -> Vec<(String, [f64; 4])> {
         step: u32,
         label: String,
     }
-    let force: Vec<F> = csv::Reader::from_path(dir.join("force.csv"))
-        .expect("force.csv")
+    let force: Vec<F> = csv::Reader::from_path(dir.join(rundir::names::FORCE))
+        .expect(rundir::names::FORCE)
         .deserialize()
         .map(|r| r.expect("row"))
         .collect();
-    let steps: Vec<S> = csv::Reader::from_path(dir.join("steps.csv"))
-        .expect("steps.csv")
+    let steps: Vec<S> = csv::Reader::from_path(dir.join(rundir::names::STEPS))
+        .expect(rundir::names::STEPS)
         .deserialize()
         .map(|r| r.expect("row"))
         .collect();

@@ -7,7 +7,7 @@
 //! what the simulated can did and how much of the gel's contact truly stuck.
 //!
 //! ```text
-//! cargo run --release -p experiments --example grasp_study -- [SEEDS] [sweep]
+//! cargo run --release -p gelrig --example grasp_study -- [SEEDS] [sweep]
 //! ```
 
 use std::path::Path;
@@ -26,7 +26,7 @@ fn rows(path: &Path) -> Vec<Row> {
 /// Dry-runs `text` (a protocol whose rig is `rig`) with `seed`; the run directory and the
 /// wall time in seconds.
 fn dry_run(tmp: &Path, text: &str, rig: &Path, seed: u64) -> (std::path::PathBuf, f64) {
-    let p = tmp.join("protocol.yaml");
+    let p = tmp.join(rundir::names::PROTOCOL);
     std::fs::write(&p, text).expect("write protocol");
     let loaded = match load(&p, Some(rig)) {
         Ok(l) => l,
@@ -89,7 +89,7 @@ fn main() {
                 seed,
             );
             walls.push(wall);
-            let t = rows(&dir.join("tactile.csv"));
+            let t = rows(&dir.join(rundir::names::TACTILE));
             ms.extend(t.iter().filter_map(|r| r["ms"].parse::<f64>().ok()));
             let gross = t.iter().position(|r| r["true_sliding"] == "true");
             let first = t
@@ -110,13 +110,13 @@ fn main() {
                 &rig,
                 seed,
             );
-            let steps = rows(&dir.join("steps.csv"));
+            let steps = rows(&dir.join(rundir::names::STEPS));
             let quiet: std::collections::BTreeSet<(String, String)> = steps
                 .iter()
                 .filter(|r| r["phase"] == "hold" || r["phase"] == "disturb")
                 .map(|r| (r["step"].clone(), r["trial"].clone()))
                 .collect();
-            alarms += rows(&dir.join("tactile.csv"))
+            alarms += rows(&dir.join(rundir::names::TACTILE))
                 .iter()
                 .filter(|r| {
                     quiet.contains(&(r["step"].clone(), r["trial"].clone()))
@@ -150,7 +150,7 @@ fn squeeze_sweep(can: &str, rig: &Path) {
             .replace("times: 10", "times: 2")
             .replace("until: 5 N", &format!("until: {until}"));
         let (dir, _) = dry_run(d.path(), &text, rig, 1);
-        let steps = rows(&dir.join("steps.csv"));
+        let steps = rows(&dir.join(rundir::names::STEPS));
         let label = |r: &Row| -> String {
             steps
                 .iter()
@@ -158,7 +158,7 @@ fn squeeze_sweep(can: &str, rig: &Path) {
                 .map(|s| s["label"].clone())
                 .unwrap_or_default()
         };
-        let t = rows(&dir.join("tactile.csv"));
+        let t = rows(&dir.join(rundir::names::TACTILE));
         let alarms = |l: &str| {
             t.iter()
                 .filter(|r| r["gripping"] == "true" && label(r) == l && r["state"] != "stick")

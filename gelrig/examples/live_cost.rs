@@ -4,7 +4,7 @@
 //! alternating pairs; medians of the wall time and their ratio.
 //!
 //! ```text
-//! cargo run --release -p experiments --example live_cost -- [PAIRS]
+//! cargo run --release -p gelrig --example live_cost -- [PAIRS]
 //! ```
 
 use std::io::{Read, Write};
@@ -16,8 +16,7 @@ use std::time::{Duration, Instant};
 
 use experiments::protocol::load;
 use rig::ClockMode;
-use runner::progress::ProgressMode;
-use runner::{Cancel, RunRequest, run};
+use runner::{Cancel, Launch, run};
 
 fn get(host: &str, path: &str) -> usize {
     let Ok(mut s) = TcpStream::connect(host) else {
@@ -36,7 +35,7 @@ fn get(host: &str, path: &str) -> usize {
 /// with `live`, the bytes the client fetched.
 fn once(file: &Path, live: bool) -> (f64, u64) {
     let loaded = load(file, None).unwrap_or_else(|d| panic!("{}", d[0]));
-    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let plan = loaded.plan.clone();
     let out = tempfile::tempdir().expect("tmp");
     let board = live
         .then(|| liveview::Board::new(gelrig::view::live_meta(&loaded, &plan, ClockMode::Virtual)));
@@ -78,17 +77,7 @@ fn once(file: &Path, live: bool) -> (f64, u64) {
     let started = Instant::now();
     let outcome = rt
         .block_on(run(
-            RunRequest {
-                loaded: &loaded,
-                plan: &plan,
-                out: out.path().to_path_buf(),
-                seed: 1,
-                clock: ClockMode::Virtual,
-                progress: ProgressMode::Quiet,
-                live: board,
-                record_mcap: false,
-                resume: None,
-            },
+            Launch::new(&loaded).out(out.path()).seed(1).live(board),
             Cancel::new(),
         ))
         .expect("run");

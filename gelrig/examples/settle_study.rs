@@ -5,7 +5,7 @@
 //! Then the coverage of the adaptive rule's reported uncertainty with a 600 s term added.
 //!
 //! ```text
-//! cargo run --release -p experiments --example settle_study
+//! cargo run --release -p gelrig --example settle_study
 //! ```
 
 use std::path::Path;
@@ -52,10 +52,10 @@ fn main() {
         let (mut errors, mut settles, mut runs) = (Vec::new(), Vec::new(), Vec::new());
         for seed in 1..=3 {
             let out = run_virtual_blocking(&loaded, &tmp.path().join("runs"), seed).expect("run");
-            let steps = out.dir.join("steps.csv");
+            let steps = out.dir.join(rundir::names::STEPS);
             let fz = column(&steps, "fz_n");
             let position = column(&steps, "position");
-            let eq = column(&out.dir.join("sim_steps.csv"), "fz_eq_n");
+            let eq = column(&out.dir.join(rundir::names::SIM_STEPS), "fz_eq_n");
             for ((f, p), e) in fz.iter().zip(&position).zip(&eq) {
                 if *p > 0.0 {
                     errors.push(100.0 * (f - e).abs() / e.abs());
@@ -107,13 +107,13 @@ fn coverage(text: &str, rig: &Path, tmp: &Path) {
     let (mut settle, mut worst_claim) = (Vec::new(), 0.0f64);
     for seed in 1..=3 {
         let out = run_virtual_blocking(&loaded, &tmp.join("slow-runs"), seed).expect("run");
-        let path = out.dir.join("steps.csv");
+        let path = out.dir.join(rundir::names::STEPS);
         let fz = column(&path, "fz_n");
         let sigma = column(&path, "f_inf_sigma");
         let position = column(&path, "position");
         let s = column(&path, "settle_s");
         let verdicts = text_column(&path, "settle_verdict");
-        let eq = column(&out.dir.join("sim_steps.csv"), "fz_eq_n");
+        let eq = column(&out.dir.join(rundir::names::SIM_STEPS), "fz_eq_n");
         for k in 0..fz.len() {
             if position[k] <= 0.0 {
                 continue;

@@ -10,16 +10,14 @@
 //! stop − crossing; overshoot = |Fz| of the tripping sample − max_fz.
 //!
 //! ```text
-//! cargo run --release -p experiments --example trip_latency -- [TRIALS]
+//! cargo run --release -p gelrig --example trip_latency -- [TRIALS]
 //! ```
 
 use std::path::{Path, PathBuf};
 
-use experiments::plan::plan;
 use experiments::protocol::{load, plant_spec};
 use rig::ClockMode;
-use runner::progress::ProgressMode;
-use runner::{Cancel, RunRequest, run};
+use runner::{Cancel, Launch, run};
 use simbench::bench::{ServeOptions, serve};
 
 struct Trial {
@@ -31,7 +29,7 @@ struct Trial {
 /// The trip of a run directory: latency from the interpolated crossing, overshoot, and the
 /// watchdog's own wall time from judgement to the last stop sent.
 fn measure(dir: &Path, limit_n: f64) -> Option<Trial> {
-    let journal = std::fs::read_to_string(dir.join("journal.jsonl")).ok()?;
+    let journal = std::fs::read_to_string(dir.join(rundir::names::JOURNAL)).ok()?;
     let trip: serde_json::Value = journal
         .lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
@@ -43,7 +41,7 @@ fn measure(dir: &Path, limit_n: f64) -> Option<Trial> {
     let t_stop = trip["t_stop_sent_ns"].as_u64()?;
     // The last judged sample below the limit: recorded, since force is recorded at the
     // monitor's rate and phase.
-    let mut r = csv::Reader::from_path(dir.join("force.csv")).ok()?;
+    let mut r = csv::Reader::from_path(dir.join(rundir::names::FORCE)).ok()?;
     let (t0, f0) = r
         .deserialize::<(u64, u32, u32, f64, f64, f64, f64, f64, f64, u64, u32)>()
         .filter_map(Result::ok)
@@ -124,7 +122,6 @@ fn main() {
     for monitor_hz in [50, 200] {
         let p = fixture(tmp.path(), monitor_hz);
         let loaded = load(&p, None).unwrap_or_else(|d| panic!("{d:?}"));
-        let pl = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
         let mut results = Vec::new();
         for seed in 0..trials {
             let rt = tokio::runtime::Builder::new_current_thread()
@@ -134,17 +131,7 @@ fn main() {
                 .expect("runtime");
             let out = rt
                 .block_on(run(
-                    RunRequest {
-                        loaded: &loaded,
-                        plan: &pl,
-                        out: tmp.path().join("sim"),
-                        seed,
-                        clock: ClockMode::Virtual,
-                        progress: ProgressMode::Quiet,
-                        live: None,
-                        record_mcap: false,
-                        resume: None,
-                    },
+                    Launch::new(&loaded).out(tmp.path().join("sim")).seed(seed),
                     Cancel::new(),
                 ))
                 .expect("run directory");
@@ -189,20 +176,12 @@ fn main() {
             std::fs::write(&bound_path, serde_yaml::to_string(&bound).expect("yaml"))
                 .expect("write the rig");
             let loaded = load(&p, Some(&bound_path)).unwrap_or_else(|d| panic!("{d:?}"));
-            let pl = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
             let out = rt
                 .block_on(run(
-                    RunRequest {
-                        loaded: &loaded,
-                        plan: &pl,
-                        out: tmp.path().join("wire"),
-                        seed,
-                        clock: ClockMode::Monotonic,
-                        progress: ProgressMode::Quiet,
-                        live: None,
-                        record_mcap: false,
-                        resume: None,
-                    },
+                    Launch::new(&loaded)
+                        .out(tmp.path().join("wire"))
+                        .seed(seed)
+                        .clock(ClockMode::Monotonic),
                     Cancel::new(),
                 ))
                 .expect("run directory");

@@ -110,7 +110,7 @@ impl RunsOnDisk {
                 path.display()
             ));
         }
-        let single = path.join("run.yaml").is_file();
+        let single = path.join(rundir::names::MANIFEST).is_file();
         if !single && rundir::listing::list(path)?.is_empty() {
             return Err(format!(
                 "{}: no run directory in it (a run directory holds run.yaml); fix: give the \
@@ -139,7 +139,9 @@ impl RunsOnDisk {
         }
         let mut parts = Path::new(id).components();
         match (parts.next(), parts.next()) {
-            (Some(Component::Normal(_)), None) if self.root.join(id).join("run.yaml").is_file() => {
+            (Some(Component::Normal(_)), None)
+                if self.root.join(id).join(rundir::names::MANIFEST).is_file() =>
+            {
                 Ok(self.root.join(id))
             }
             _ => Err(format!("no run `{id}` in {}", self.root.display())),
@@ -192,9 +194,9 @@ impl Library for RunsOnDisk {
                 .unwrap_or(SystemTime::UNIX_EPOCH)
         };
         // A run still writing shows its newest rows: read again when its files changed.
-        let changed = stamp("run.yaml")
-            .max(stamp("steps.csv"))
-            .max(stamp("force.csv"));
+        let changed = stamp(rundir::names::MANIFEST)
+            .max(stamp(rundir::names::STEPS))
+            .max(stamp(rundir::names::FORCE));
         let mut boards = self.boards.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some((at, b)) = boards.get(id)
             && *at == changed
@@ -228,11 +230,11 @@ impl Library for RunsOnDisk {
 /// frames, and last tactile state.
 pub fn read_board(dir: &Path) -> Result<Arc<Board>, RunDirError> {
     let manifest = rundir::write::read_manifest(dir).map_err(|detail| RunDirError::Missing {
-        path: dir.join("run.yaml"),
+        path: dir.join(rundir::names::MANIFEST),
         detail,
     })?;
     let protocol: Option<experiments::protocol::schema::Protocol> =
-        std::fs::read_to_string(dir.join("protocol.yaml"))
+        std::fs::read_to_string(dir.join(rundir::names::PROTOCOL))
             .ok()
             .and_then(|t| serde_yaml::from_str(&t).ok());
     let limit = |f: fn(&experiments::protocol::schema::Safety) -> f64| {
@@ -250,10 +252,10 @@ pub fn read_board(dir: &Path) -> Result<Arc<Board>, RunDirError> {
         max_tz_nmm: limit(|s| s.max_tz.nmm()),
         live: false,
     });
-    for f in read_optional::<ForceRow>(&dir.join("force.csv"))?.unwrap_or_default() {
+    for f in read_optional::<ForceRow>(&dir.join(rundir::names::FORCE))?.unwrap_or_default() {
         board.force(f.t_ns, [f.fx_n, f.fy_n, f.fz_n, f.tz_nmm]);
     }
-    let steps = sensing::run_data::read_csv::<StepRow>(&dir.join("steps.csv"))?;
+    let steps = sensing::run_data::read_csv::<StepRow>(&dir.join(rundir::names::STEPS))?;
     for s in &steps {
         let point = CurvePoint {
             step: s.step,
@@ -270,13 +272,13 @@ pub fn read_board(dir: &Path) -> Result<Arc<Board>, RunDirError> {
             s.t_end_ns.max(s.settle_end_ns),
         );
     }
-    let frames = read_optional::<FrameRow>(&dir.join("frames.csv"))?.unwrap_or_default();
+    let frames = read_optional::<FrameRow>(&dir.join(rundir::names::FRAMES))?.unwrap_or_default();
     // The counter's usual step between recorded frames: a stream's stride (captures at the
     // steps' ends are far apart, and count as pauses).
     let stride = median_step(frames.iter().filter_map(|f| f.seq));
     for (k, f) in frames.iter().enumerate() {
         let image = (k == 0 || k + 1 == frames.len())
-            .then(|| image::open(dir.join(format!("frames/{:06}.png", f.frame))).ok())
+            .then(|| image::open(dir.join(rundir::names::frame_png(f.frame))).ok())
             .flatten()
             .map(|i| i.to_rgb8());
         let seq = (f.seq.unwrap_or(f.frame), stride);
@@ -285,7 +287,7 @@ pub fn read_board(dir: &Path) -> Result<Arc<Board>, RunDirError> {
             None => board.frame_seen(f.t_ns, seq),
         }
     }
-    if let Some(t) = read_optional::<TactileCsvRow>(&dir.join("tactile.csv"))?
+    if let Some(t) = read_optional::<TactileCsvRow>(&dir.join(rundir::names::TACTILE))?
         .unwrap_or_default()
         .last()
     {

@@ -14,6 +14,20 @@
 //! - [`viscoelastic`]: Prony series (generalised Maxwell) with the exact exponential update.
 //! - [`contact`]: quasistatic normal, tangential and torsional contact laws on a bonded layer.
 //! - [`field`]: in-plane surface displacement fields under normal, shear and torsional load.
+//! - [`greens`]: Green's functions of the surface — half-space point loads and the bonded
+//!   layer's compliance in Fourier space.
+//! - [`operator`]: surface compliance operators on a grid of cells, by FFT ([`fft2`]).
+//! - [`solve`]: contact solvers on a grid — known area, unknown area (Polonsky–Keer).
+//! - [`punch`]: the flat circular punch on a bonded layer, semi-analytically (Hayes et al.
+//!   1972).
+//! - [`friction`]: Cattaneo–Mindlin partial slip in closed form and the plant's hysteretic
+//!   friction element.
+//! - [`pressing`]: flat and curved indenters pressed with Coulomb friction (coupled normal–
+//!   tangential contact), along their loading path.
+//! - [`unloading`]: a curved contact that shrinks, viscoelastically (Ting 1966, by MDR).
+//! - [`finite_strain`]: how much stiffer a neo-Hookean gel presses than small strain says.
+//! - [`response`]: the contact model precomputed from the solvers, fast enough for every
+//!   force sample of a dry run.
 
 pub mod contact;
 pub mod fft2;

@@ -14,8 +14,8 @@ use super::results::{Block, BlockStep, Kind, Linearity, RefModel, Report, Slip, 
 const QUASISTATIC_S: f64 = 5.0;
 
 pub(crate) fn reference_model(data: &RunData) -> Result<RefModel, String> {
-    let protocol = data.dir.join("protocol.yaml");
-    let rig = data.dir.join("rig.yaml");
+    let protocol = data.dir.join(rundir::names::PROTOCOL);
+    let rig = data.dir.join(rundir::names::RIG);
     let loaded = experiments::protocol::load(&protocol, Some(&rig)).map_err(|d| {
         format!(
             "the run's protocol does not load ({})",

@@ -13,7 +13,7 @@ pub(super) fn header(data: &RunData) -> (String, Value) {
     let m = &data.manifest;
     let status = rundir::listing::effective_status(&data.dir, m.status);
     let reason = m.reason.clone().or_else(|| m.error.clone());
-    let sha256 = std::fs::read(data.dir.join("protocol.yaml"))
+    let sha256 = std::fs::read(data.dir.join(rundir::names::PROTOCOL))
         .ok()
         .map(|bytes| hex(&Sha256::digest(&bytes)));
     // Simulated when every device that ran says so (a dry run, or `sim serve` twins bound

@@ -11,6 +11,7 @@
 
 pub mod export;
 pub mod listing;
+pub mod names;
 pub mod read;
 pub mod resumed;
 mod ros2;

@@ -64,7 +64,7 @@ pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
     let mut dirs: Vec<PathBuf> = entries
         .filter_map(Result::ok)
         .map(|e| e.path())
-        .filter(|p| p.join("run.yaml").is_file())
+        .filter(|p| p.join(crate::names::MANIFEST).is_file())
         .collect();
     dirs.sort();
     Ok(dirs

@@ -223,14 +223,14 @@ pub struct TactileCsvRow {
 
 /// Reads `tactile.csv` if the run has one.
 pub fn read_tactile(dir: &Path) -> Result<Vec<TactileCsvRow>, RunDirError> {
-    Ok(read_optional(&dir.join("tactile.csv"))?.unwrap_or_default())
+    Ok(read_optional(&dir.join(crate::names::TACTILE))?.unwrap_or_default())
 }
 
 /// The events of `journal.jsonl` in order, each a JSON object with its `event` name. A line
 /// that does not parse is skipped: the journal is appended line by line, so a killed run can
 /// leave its last line torn, and what the writer finished stays readable.
 pub fn read_journal(dir: &Path) -> Result<Vec<serde_json::Value>, RunDirError> {
-    let path = dir.join("journal.jsonl");
+    let path = dir.join(crate::names::JOURNAL);
     let text = std::fs::read_to_string(&path).map_err(|e| RunDirError::Missing {
         path: path.clone(),
         detail: e.to_string(),

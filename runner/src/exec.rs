@@ -188,7 +188,10 @@ impl<'a> Exec<'a> {
                 self.window.push_back((s.t_ns, w, s.status));
             }
             self.latest = Some((s.t_ns, w));
-            if let Some(b) = self.progress.live() {
+            if r.record {
+                self.progress
+                    .force(s.t_ns, [w.fx_n, w.fy_n, w.fz_n, w.tz_nmm]);
+            } else if let Some(b) = self.progress.live() {
                 b.force(s.t_ns, [w.fx_n, w.fy_n, w.fz_n, w.tz_nmm]);
             }
             if r.record {

@@ -21,8 +21,10 @@
 mod adaptive;
 mod blocks;
 mod cancel;
+pub mod events;
 mod exec;
 mod frame_force;
+mod launch;
 mod motion;
 pub mod progress;
 mod resume;
@@ -39,13 +41,14 @@ use rig::{Clock, ClockMode, RigError};
 use serde_json::json;
 use simbench::{OpenRequest, Rig};
 
-use crate::progress::{Progress, ProgressMode};
-use experiments::plan::Plan;
+use crate::progress::Progress;
 use experiments::protocol::{Loaded, plant_spec};
 use rundir::write::{DeviceRecord, Manifest, RecordError, Recorder, Status};
 
 pub use cancel::Cancel;
+pub use events::{Event, Observer};
 use exec::Exec;
+pub use launch::Launch;
 pub use resume::Resume;
 
 /// The camera's image scale, mm/px: the sensor's view fitted into the frame (as `gelrig
@@ -53,7 +56,7 @@ pub use resume::Resume;
 /// The sensor file of `record.gelsight_force` (relative to the protocol), read before any
 /// step runs; a file that does not read stops the run there, naming why.
 /// Where a run keeps a copy of the sensor file it read the GelSight's force with.
-pub const GELSIGHT_SENSOR_FILE: &str = "gelsight_sensor.yaml";
+pub const GELSIGHT_SENSOR_FILE: &str = rundir::names::GELSIGHT_SENSOR;
 
 fn gelsight_sensor(loaded: &Loaded) -> Result<Option<sensing::sensor::SensorFile>, String> {
     let Some(rel) = &loaded.protocol.record.gelsight_force else {
@@ -72,29 +75,6 @@ fn image_scale(loaded: &Loaded, rig: &Rig) -> Option<f64> {
     (s.is_finite() && s > 0.0).then_some(s)
 }
 use watchdog::{Limits, Monitor, TripKind, WatchConfig};
-
-/// What to run, where, and how.
-pub struct RunRequest<'a> {
-    /// The checked protocol and rig.
-    pub loaded: &'a Loaded,
-    /// Its plan (for the manifest's ETA and the progress display).
-    pub plan: &'a Plan,
-    /// Directory that receives the run directory.
-    pub out: PathBuf,
-    /// Seed of simulated devices.
-    pub seed: u64,
-    /// Run clock.
-    pub clock: ClockMode,
-    /// Progress display.
-    pub progress: ProgressMode,
-    /// The live view's board (`gelrig run --live`); `None` serves nothing.
-    pub live: Option<std::sync::Arc<liveview::Board>>,
-    /// Also write `run.mcap` as the run goes (`gelrig run --record mcap`).
-    pub record_mcap: bool,
-    /// Continue this run in its own directory instead of starting one (`gelrig resume`);
-    /// `out` is then unused.
-    pub resume: Option<Resume>,
-}
 
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -179,33 +159,14 @@ pub fn run_virtual_blocking(
     out: &std::path::Path,
     seed: u64,
 ) -> Result<RunOutcome, RecordError> {
-    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .start_paused(true)
-        .build()
-        .map_err(|source| RecordError::Io {
-            path: out.to_path_buf(),
-            source,
-        })?;
-    rt.block_on(run(
-        RunRequest {
-            loaded,
-            plan: &plan,
-            out: out.to_path_buf(),
-            seed,
-            clock: ClockMode::Virtual,
-            progress: crate::progress::ProgressMode::Quiet,
-            live: None,
-            record_mcap: false,
-            resume: None,
-        },
-        Cancel::new(),
-    ))
+    Launch::new(loaded)
+        .out(out)
+        .seed(seed)
+        .run_blocking(Cancel::new())
 }
 
 /// Runs `req`; returns how it ended. Fails only if the run directory cannot be created.
-pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, RecordError> {
+pub async fn run(req: Launch<'_>, cancel: Cancel) -> Result<RunOutcome, RecordError> {
     let loaded = req.loaded;
     let p = &loaded.protocol;
     let clock = match &req.resume {
@@ -229,8 +190,8 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
         steps_planned: loaded.compiled.steps,
         steps_completed: 0,
         eta_s: [
-            (req.plan.duration_s.min * 10.0).round() / 10.0,
-            (req.plan.duration_s.max * 10.0).round() / 10.0,
+            (req.loaded.plan.duration_s.min * 10.0).round() / 10.0,
+            (req.loaded.plan.duration_s.max * 10.0).round() / 10.0,
         ],
         devices: Vec::new(),
         tare: None,
@@ -259,7 +220,7 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
     };
     // A resumed run goes on writing `run.mcap` if its first segment did (or if asked).
     match &req.resume {
-        Some(r) if req.record_mcap || r.dir.join("run.mcap").is_file() => {
+        Some(r) if req.record_mcap || r.dir.join(rundir::names::MCAP).is_file() => {
             rec.record_mcap_resumed(&loaded.rig_text)?;
         }
         None if req.record_mcap => rec.record_mcap(&loaded.rig_text)?,
@@ -268,10 +229,11 @@ pub async fn run(req: RunRequest<'_>, cancel: Cancel) -> Result<RunOutcome, Reco
     let progress = Progress::new(
         req.progress,
         loaded.compiled.steps,
-        req.plan.duration_s.max,
+        req.loaded.plan.duration_s.max,
         time_scale(req.clock),
     )
-    .with_live(req.live.clone());
+    .with_live(req.live.clone())
+    .with_observer(req.observer.clone());
     if let Some(b) = progress.live() {
         b.set_dir(&rec.dir().display().to_string());
     }
@@ -471,6 +433,11 @@ fn finish(
     if let Some(b) = progress.live() {
         b.finished(status.name(), message.as_deref());
     }
+    progress.emit(events::Event::End {
+        status: status.name().to_string(),
+        message: message.clone(),
+        dir: rec.dir().display().to_string(),
+    });
     written?;
     Ok(RunOutcome {
         dir: rec.dir().to_path_buf(),

@@ -229,6 +229,12 @@ impl Exec<'_> {
         let (fps, exposure_s) = (cam.info().fps, cam.info().exposure_s);
         let force = self.frame_force(&frame, exposure_s, fps).await;
         let index = self.rec.frame(&frame, self.step, self.trial, force)?;
+        if let Some(i) = index {
+            self.progress.emit(crate::events::Event::Frame {
+                index: i,
+                t_ns: frame.t_ns,
+            });
+        }
         if let (Some(b), Some(i)) = (self.progress.live(), index) {
             // In a frame stream the camera's counter steps by its rate over the stream's.
             let stride = (self.next_frame_stream.is_some())
@@ -310,6 +316,13 @@ impl Exec<'_> {
                     String::new()
                 }
             )));
+            self.progress.emit(crate::events::Event::Tactile {
+                t_ns: row.t_ns,
+                state: row.state.clone(),
+                gripping: row.gripping,
+                stuck_fraction: row.stuck_fraction,
+                gelsight_fz_n: row.gelsight_fz_n,
+            });
             if let Some(b) = self.progress.live() {
                 b.tactile(liveview::Tactile {
                     state: row.state.clone(),

@@ -40,6 +40,7 @@ pub struct Progress {
     trial: Mutex<Option<(u32, u32)>>,
     /// The live view's board, with `--live`: it gets every line and phase the bar shows.
     live: Option<Arc<liveview::Board>>,
+    observer: Option<crate::events::Observer>,
 }
 
 impl Progress {
@@ -77,7 +78,35 @@ impl Progress {
             tactile: Mutex::new(None),
             trial: Mutex::new(None),
             live: None,
+            observer: None,
         }
+    }
+
+    /// Also tells `observer` every event of the run.
+    pub fn with_observer(mut self, observer: Option<crate::events::Observer>) -> Self {
+        self.observer = observer;
+        self
+    }
+
+    /// Tells the observer, if any.
+    pub fn emit(&self, event: crate::events::Event) {
+        if let Some(o) = &self.observer {
+            o(&event);
+        }
+    }
+
+    /// A force reading the run records: to the live view and the observer.
+    pub fn force(&self, t_ns: u64, wrench: [f64; 4]) {
+        if let Some(b) = &self.live {
+            b.force(t_ns, wrench);
+        }
+        self.emit(crate::events::Event::Force {
+            t_ns,
+            fx_n: wrench[0],
+            fy_n: wrench[1],
+            fz_n: wrench[2],
+            tz_nmm: wrench[3],
+        });
     }
 
     /// Also shows the run on the live view's `board`.
@@ -134,14 +163,22 @@ impl Progress {
     /// A step starts: `what` is e.g. `load normal → 0.336 mm`. Step 0 is the time between
     /// steps (homing, an approach, a trial's set-up).
     pub fn step(&self, step: u32, what: &str, phase: &str, t_s: f64) {
+        let trial = self
+            .trial
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .map_or(0, |(k, _)| k);
+        let t_ns = (t_s * 1e9).max(0.0) as u64;
         if let Some(b) = &self.live {
-            let trial = self
-                .trial
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .map_or(0, |(k, _)| k);
-            b.phase(step, trial, what, phase, (t_s * 1e9).max(0.0) as u64);
+            b.phase(step, trial, what, phase, t_ns);
         }
+        self.emit(crate::events::Event::Step {
+            step,
+            trial,
+            what: what.to_string(),
+            phase: phase.to_string(),
+            t_ns,
+        });
         if let Some(pb) = &self.bar {
             let done = self.done.load(std::sync::atomic::Ordering::Relaxed);
             pb.set_position(bar_position(step, done));
@@ -205,6 +242,10 @@ impl Progress {
         if let Some(b) = &self.live {
             b.note(&text);
         }
+        self.emit(crate::events::Event::StepDone {
+            step,
+            line: line.to_string(),
+        });
         if let Some(pb) = &self.bar {
             pb.set_position(step as u64);
             pb.println(text);
@@ -218,6 +259,9 @@ impl Progress {
         if let Some(b) = &self.live {
             b.note(line);
         }
+        self.emit(crate::events::Event::Note {
+            line: line.to_string(),
+        });
         if let Some(pb) = &self.bar {
             pb.println(line);
         } else if self.plain {

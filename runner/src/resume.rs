@@ -117,7 +117,8 @@ impl Resume {
                 ),
             ));
         }
-        let rows: Vec<StepRow> = read_csv(&dir.join("steps.csv")).map_err(|e| refuse(dir, e))?;
+        let rows: Vec<StepRow> =
+            read_csv(&dir.join(rundir::names::STEPS)).map_err(|e| refuse(dir, e))?;
         let rows = Segments::last_per_step(rows, |r| r.step);
         let done: BTreeMap<u32, &StepRow> = rows.iter().map(|r| (r.step, r)).collect();
         let steps: Vec<(&Step, u32)> = loaded
@@ -359,13 +360,13 @@ impl Exec<'_> {
 fn last_record_ns(dir: &Path) -> u64 {
     let mut last = 0;
     for name in [
-        "force.csv",
-        "axes.csv",
-        "frames.csv",
-        "tactile.csv",
-        "steps.csv",
+        rundir::names::FORCE,
+        rundir::names::AXES,
+        rundir::names::FRAMES,
+        rundir::names::TACTILE,
+        rundir::names::STEPS,
     ] {
-        let column = if name == "steps.csv" {
+        let column = if name == rundir::names::STEPS {
             "t_end_ns"
         } else {
             "t_ns"
@@ -374,7 +375,7 @@ fn last_record_ns(dir: &Path) -> u64 {
             last = last.max(t);
         }
     }
-    if let Ok(text) = tail(&dir.join("journal.jsonl")) {
+    if let Ok(text) = tail(&dir.join(rundir::names::JOURNAL)) {
         for line in text.lines() {
             if let Some(t) = serde_json::from_str::<serde_json::Value>(line)
                 .ok()
@@ -390,11 +391,11 @@ fn last_record_ns(dir: &Path) -> u64 {
 /// When the run's files were last written (a killed segment records no end), RFC 3339 UTC.
 fn last_written_utc(dir: &Path) -> Option<String> {
     [
-        "journal.jsonl",
-        "force.csv",
-        "frames.csv",
-        "steps.csv",
-        "run.yaml",
+        rundir::names::JOURNAL,
+        rundir::names::FORCE,
+        rundir::names::FRAMES,
+        rundir::names::STEPS,
+        rundir::names::MANIFEST,
     ]
     .iter()
     .filter_map(|f| std::fs::metadata(dir.join(f)).ok()?.modified().ok())

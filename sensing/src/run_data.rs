@@ -46,14 +46,16 @@ impl RunData {
 
 /// The run's protocol, loaded against its own rig file; `Err` says why it does not load.
 pub fn run_protocol(dir: &Path) -> Result<experiments::protocol::Loaded, String> {
-    experiments::protocol::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml"))).map_err(
-        |d| {
-            format!(
-                "its protocol.yaml does not load ({})",
-                d.first().map(|d| d.to_string()).unwrap_or_default()
-            )
-        },
+    experiments::protocol::load(
+        &dir.join(rundir::names::PROTOCOL),
+        Some(&dir.join(rundir::names::RIG)),
     )
+    .map_err(|d| {
+        format!(
+            "its protocol.yaml does not load ({})",
+            d.first().map(|d| d.to_string()).unwrap_or_default()
+        )
+    })
 }
 
 /// Reads the run, tracking its frames into `markers.csv` first if that is missing.
@@ -75,7 +77,7 @@ fn read(dir: &Path, with_markers: bool) -> Result<RunData, RunDirError> {
         });
     }
     let manifest = rundir::write::read_manifest(dir).map_err(|detail| RunDirError::Missing {
-        path: dir.join("run.yaml"),
+        path: dir.join(rundir::names::MANIFEST),
         detail,
     })?;
     // A resumed run is read as one: each step's rows from the segment that completed it.
@@ -85,15 +87,17 @@ fn read(dir: &Path, with_markers: bool) -> Result<RunData, RunDirError> {
             steps.iter().map(|r| (r.step, r.trial, r.t_end_ns)),
         )
     };
-    let all_steps: Vec<StepRow> = read_csv(&dir.join("steps.csv"))?;
+    let all_steps: Vec<StepRow> = read_csv(&dir.join(rundir::names::STEPS))?;
     // Segments are told from every step row, the abandoned attempts' included (a trial's
     // segment is that of its last row); the run's steps are the last row of each.
     let seg = segments(&all_steps);
     let steps = rundir::resumed::Segments::last_per_step(all_steps, |r| r.step);
-    let mut force: Vec<ForceRow> = read_optional(&dir.join("force.csv"))?.unwrap_or_default();
-    let sim = read_optional::<SimRow>(&dir.join("sim_steps.csv"))?
+    let mut force: Vec<ForceRow> =
+        read_optional(&dir.join(rundir::names::FORCE))?.unwrap_or_default();
+    let sim = read_optional::<SimRow>(&dir.join(rundir::names::SIM_STEPS))?
         .map(|rows| rundir::resumed::Segments::last_per_step(rows, |r| r.step));
-    let mut frames: Vec<FrameRow> = read_optional(&dir.join("frames.csv"))?.unwrap_or_default();
+    let mut frames: Vec<FrameRow> =
+        read_optional(&dir.join(rundir::names::FRAMES))?.unwrap_or_default();
     let mut tactile = read_tactile(dir)?;
     if seg.resumed() {
         force.retain(|r| seg.keeps(r.step, r.trial, r.t_ns));
@@ -104,15 +108,15 @@ fn read(dir: &Path, with_markers: bool) -> Result<RunData, RunDirError> {
     let mut frame_size = None;
     let mut contact = Vec::new();
     if with_markers && frames.len() > 1 {
-        let path = dir.join("markers.csv");
-        if !path.is_file() || !dir.join("contact.csv").is_file() {
+        let path = dir.join(rundir::names::MARKERS);
+        if !path.is_file() || !dir.join(rundir::names::CONTACT).is_file() {
             track_into_place(dir)?;
         }
         for m in read_csv::<MarkerRow>(&path)? {
             markers.entry(m.frame).or_insert_with(Vec::new).push(m);
         }
         frame_size = first_frame_size(dir);
-        contact = read_optional(&dir.join("contact.csv"))?.unwrap_or_default();
+        contact = read_optional(&dir.join(rundir::names::CONTACT))?.unwrap_or_default();
     }
     Ok(RunData {
         dir: dir.to_path_buf(),
@@ -136,7 +140,7 @@ fn track_into_place(dir: &Path) -> Result<(), RunDirError> {
     let work = dir.join(format!(".tracking-{}", std::process::id()));
     let err = |path: PathBuf, detail: String| RunDirError::Missing { path, detail };
     std::fs::create_dir_all(&work).map_err(|e| err(work.clone(), e.to_string()))?;
-    let markers = work.join("markers.csv");
+    let markers = work.join(rundir::names::MARKERS);
     let tracked = crate::track::track(
         &crate::track::Input::RunDir {
             dir: dir.to_path_buf(),
@@ -147,12 +151,12 @@ fn track_into_place(dir: &Path) -> Result<(), RunDirError> {
     )
     .map_err(|e| {
         err(
-            dir.join("markers.csv"),
+            dir.join(rundir::names::MARKERS),
             format!("tracking the run's frames failed: {e}"),
         )
     });
     let placed = tracked.and_then(|_| {
-        for name in ["contact.csv", "markers.csv"] {
+        for name in [rundir::names::CONTACT, rundir::names::MARKERS] {
             std::fs::rename(work.join(name), dir.join(name))
                 .map_err(|e| err(dir.join(name), e.to_string()))?;
         }
@@ -163,7 +167,7 @@ fn track_into_place(dir: &Path) -> Result<(), RunDirError> {
 }
 
 fn first_frame_size(dir: &Path) -> Option<(usize, usize)> {
-    let rows: Vec<BTreeMap<String, String>> = read_csv(&dir.join("frames.csv")).ok()?;
+    let rows: Vec<BTreeMap<String, String>> = read_csv(&dir.join(rundir::names::FRAMES)).ok()?;
     let file = rows.first()?.get("file")?;
     let (w, h) = image::image_dimensions(rundir::write::run_file(dir, file).ok()?).ok()?;
     Some((w as usize, h as usize))

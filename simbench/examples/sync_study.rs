@@ -5,7 +5,7 @@
 //! error of the frame-to-force offset is measured against the twin's and the camera's truth.
 //! Also counts the records the driver lost (target: none at 7 kHz for 60 s).
 //!
-//! `cargo run --release -p rig --example sync_study -- [SECONDS=60]`
+//! `cargo run --release -p simbench --example sync_study -- [SECONDS=60]`
 
 use std::collections::HashMap;
 use std::time::Duration;

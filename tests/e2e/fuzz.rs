@@ -325,7 +325,7 @@ fn mutated_protocols_and_rigs_never_panic_hang_or_run_away() {
         let (p2, r2) = (p.clone(), rig_path.clone());
         let loaded = bounded(Duration::from_secs(5), move || {
             let l = experiments::protocol::load(&p2, Some(&r2)).ok()?;
-            let plan = experiments::plan::plan(&l.protocol, &l.compiled, &l.rig);
+            let plan = l.plan.clone();
             Some((l, plan))
         });
         let (loaded, plan) = match loaded {

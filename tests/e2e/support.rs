@@ -4,11 +4,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-use experiments::plan::{Plan, plan};
+use experiments::plan::Plan;
 use experiments::protocol::{Loaded, load};
-use rig::ClockMode;
-use runner::progress::ProgressMode;
-use runner::{Cancel, RunOutcome, RunRequest, run};
+use runner::{Cancel, Launch, RunOutcome, run};
 
 /// The workspace root.
 pub(crate) fn root() -> PathBuf {
@@ -124,7 +122,7 @@ pub(crate) fn run_virtual(
     seed: u64,
     cancel_after_s: Option<f64>,
 ) -> (RunOutcome, Plan) {
-    let plan = plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let plan = loaded.plan.clone();
     let Some(cancel_after_s) = cancel_after_s else {
         let outcome = runner::run_virtual_blocking(loaded, out, seed).unwrap();
         return (outcome, plan);
@@ -141,22 +139,9 @@ pub(crate) fn run_virtual(
             tokio::time::sleep(std::time::Duration::from_secs_f64(cancel_after_s)).await;
             c.interrupt();
         });
-        run(
-            RunRequest {
-                loaded,
-                plan: &plan,
-                out: out.to_path_buf(),
-                seed,
-                clock: ClockMode::Virtual,
-                progress: ProgressMode::Quiet,
-                live: None,
-                record_mcap: false,
-                resume: None,
-            },
-            cancel,
-        )
-        .await
-        .unwrap()
+        run(Launch::new(loaded).out(out).seed(seed), cancel)
+            .await
+            .unwrap()
     });
     (outcome, plan)
 }
@@ -298,7 +283,6 @@ pub(crate) fn run_on_real_rig(
     let out = p.parent().unwrap().join("runs");
     let out2 = out.clone();
     let side = std::thread::spawn(move || meanwhile(out2));
-    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -306,17 +290,9 @@ pub(crate) fn run_on_real_rig(
         .unwrap();
     let outcome = rt
         .block_on(runner::run(
-            runner::RunRequest {
-                loaded: &loaded,
-                plan: &plan,
-                out,
-                seed: 0,
-                clock: rig::ClockMode::Monotonic,
-                progress: runner::progress::ProgressMode::Quiet,
-                live: None,
-                record_mcap: false,
-                resume: None,
-            },
+            runner::Launch::new(&loaded)
+                .out(out)
+                .clock(rig::ClockMode::Monotonic),
             runner::Cancel::new(),
         ))
         .unwrap();

@@ -499,7 +499,7 @@ fn an_adaptive_settle_is_checked_where_it_is_written() {
         &with("adaptive: {tolerance: 1 %, min: 20 s, max: 300 s}"),
     )
     .unwrap();
-    let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+    let plan = loaded.plan.clone();
     let text = format!("{plan:?}");
     assert!(plan.duration_s.max > plan.duration_s.min, "{text}");
 }

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Precision of OpenCV centroid pipelines and of `gelrig track` on the same synthetic frames
-with exact truth (written by `cargo run --release -p analysis --example tracking_frames`).
+with exact truth (written by `cargo run --release -p tracking --example tracking_frames`).
 
 Two OpenCV pipelines, both one thread:
   weighted:  the pipeline of opencv_baseline.py (darkness against a marker-free background,

@@ -7,7 +7,7 @@
 //! for like. Without `../shared`, a rendered sequence of the box sensor stands in (said on
 //! stderr).
 //!
-//! Run: `cargo bench -p analysis --bench tracking`
+//! Run: `cargo bench -p tracking --bench tracking`
 
 use std::hint::black_box;
 use std::path::Path;

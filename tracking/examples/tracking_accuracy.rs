@@ -10,7 +10,7 @@
 //! - `lk`: weighted Lucas–Kanade alone, 3 pyramid levels, started from the previous frame;
 //! - `centroid+lk`: the centroid refined by one level of weighted LK.
 //!
-//! Run: `cargo run --release -p analysis --example tracking_accuracy`
+//! Run: `cargo run --release -p tracking --example tracking_accuracy`
 
 use std::time::Instant;
 

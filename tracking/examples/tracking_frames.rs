@@ -2,7 +2,7 @@
 //! centres, so other pipelines (`benches/opencv_precision.py`) and `gelrig track` can be
 //! scored on the very same frames.
 //!
-//! Run: `cargo run --release -p analysis --example tracking_frames -- "noise σ 30" /tmp/noise30`
+//! Run: `cargo run --release -p tracking --example tracking_frames -- "noise σ 30" /tmp/noise30`
 //! (the first argument picks conditions by name, as in `tracking_identity`). Writes
 //! `frame_NNNN.png` (frame 0 is the reference) and `truth.csv` (`frame,marker,x_px,y_px`),
 //! and prints the spacing and marker radius in pixels.

@@ -6,7 +6,7 @@
 //! triangles, per seed. Scoring is in `tests/common/identity.rs`, shared with the tests that
 //! hold the targets (which test on seeds 2 and 3; seed 1 tuned the rules).
 //!
-//! Run: `cargo run --release -p analysis --example tracking_identity`
+//! Run: `cargo run --release -p tracking --example tracking_identity`
 //! (`-- centroid` for one method, `-- centroid NAME` for conditions named like NAME,
 //! `-- centroid NAME 1,2,3` for the seeds of the coming-back and jump families).
 

@@ -2,7 +2,7 @@
 //! versioned artifact — the values a protocol uses (`material: {from: MATERIAL.yaml}`), their
 //! uncertainties, what they were fitted on and how well the fit follows the records.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
@@ -15,27 +15,7 @@ pub const FORMAT: &str = "gelrig-material";
 pub const VERSION: u32 = 2;
 
 /// Why a material file could not be read or written.
-#[derive(Debug, thiserror::Error)]
-pub enum MaterialFileError {
-    /// Reading or parsing failed.
-    #[error("{path}: {detail}; fix: {fix}")]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// What went wrong.
-        detail: String,
-        /// What to do.
-        fix: &'static str,
-    },
-    /// Writing failed.
-    #[error("cannot write {path}: {detail}; fix: check the folder exists and is writable")]
-    Write {
-        /// The file.
-        path: PathBuf,
-        /// What went wrong.
-        detail: String,
-    },
-}
+pub type MaterialFileError = crate::artifact::ArtifactError;
 
 /// A fitted gel.
 #[derive(Debug, Clone, Serialize, Deserialize)]

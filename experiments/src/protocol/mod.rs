@@ -39,6 +39,9 @@ pub struct Loaded {
     pub rig: RigConfig,
     /// The expanded run.
     pub compiled: Compiled,
+    /// Its plan — steps, durations, data — computed once as the protocol is checked (its
+    /// data budget is part of the check) and carried to the runner and the commands.
+    pub plan: crate::plan::Plan,
     /// Warnings (errors prevent a `Loaded`).
     pub warnings: Vec<Diagnostic>,
 }
@@ -412,6 +415,7 @@ fn load_text(
         rig_text,
         rig,
         compiled,
+        plan: planned,
         warnings: diags,
     })
 }

@@ -39,7 +39,7 @@ impl Cmd {
         let out = self
             .out
             .clone()
-            .unwrap_or_else(|| self.run.join("run.mcap"));
+            .unwrap_or_else(|| self.run.join(rundir::names::MCAP));
         match export_mcap(&self.run, &out) {
             Ok(e) => {
                 for (topic, n) in &e.messages {

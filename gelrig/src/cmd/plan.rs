@@ -25,7 +25,7 @@ impl Cmd {
             Ok(l) => l,
             Err(code) => return Ok(code),
         };
-        let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
+        let plan = loaded.plan.clone();
         if self.json {
             out!("{}", serde_json::to_string_pretty(&plan)?);
         } else {

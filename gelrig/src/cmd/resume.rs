@@ -37,7 +37,7 @@ impl Cmd {
             );
             return Ok(ExitCode::from(super::EXIT_INVALID));
         }
-        if !dir.join("run.yaml").is_file() {
+        if !dir.join(rundir::names::MANIFEST).is_file() {
             err!(
                 "error: {}: not a run directory (no run.yaml); fix: give a directory `gelrig run` made (`gelrig runs` lists them)",
                 dir.display()
@@ -47,8 +47,8 @@ impl Cmd {
         // The run goes on with the protocol and rig it recorded, not whatever the files
         // it was started from say now.
         let mut loaded = match super::load_or_report(
-            &dir.join("protocol.yaml"),
-            Some(&dir.join("rig.yaml")),
+            &dir.join(rundir::names::PROTOCOL),
+            Some(&dir.join(rundir::names::RIG)),
             &super::BudgetArgs::default(),
         ) {
             Ok(l) => l,

@@ -8,7 +8,7 @@ use anyhow::Context;
 use rig::ClockMode;
 use rundir::write::Status;
 use runner::progress::ProgressMode;
-use runner::{Cancel, RunRequest, run};
+use runner::{Cancel, Launch};
 
 /// How a run is timed, shown and watched (`gelrig run` and `gelrig resume`).
 #[derive(clap::Args)]
@@ -155,7 +155,6 @@ pub(crate) fn execute(
     live: &mut Live,
 ) -> anyhow::Result<ExitCode> {
     {
-        let plan = experiments::plan::plan(&loaded.protocol, &loaded.compiled, &loaded.rig);
         let mode = if opts.quiet {
             ProgressMode::Quiet
         } else if opts.plain {
@@ -170,7 +169,7 @@ pub(crate) fn execute(
         let board = opts
             .live
             .is_some()
-            .then(|| liveview::Board::new(gelrig::view::live_meta(loaded, &plan, clock)));
+            .then(|| liveview::Board::new(gelrig::view::live_meta(loaded, &loaded.plan, clock)));
         if let (Some(addr), Some(b)) = (&opts.live, &board) {
             match live {
                 Some((lib, _)) => lib.set(b.clone()),
@@ -182,37 +181,15 @@ pub(crate) fn execute(
                 }
             }
         }
-        // Virtual time: tokio's paused clock jumps to the next timer whenever the run waits;
-        // it needs the single-threaded runtime. On a real (or scaled) clock the watchdog
-        // gets a worker thread of its own, so nothing the plan computes can delay it.
-        let runtime = if clock == ClockMode::Virtual {
-            tokio::runtime::Builder::new_current_thread()
-                .enable_all()
-                .start_paused(true)
-                .build()
-        } else {
-            tokio::runtime::Builder::new_multi_thread()
-                .worker_threads(2)
-                .enable_all()
-                .build()
-        }
-        .context("starting the runtime")?;
-        let outcome = runtime.block_on(run(
-            RunRequest {
-                loaded,
-                plan: &plan,
-                out: target.out.to_path_buf(),
-                seed: target.seed,
-                clock,
-                progress: mode,
-                live: board,
-                record_mcap: target.record_mcap,
-                resume: target.resume,
-            },
-            cancel.clone(),
-        ));
-        // A device open abandoned by an interrupt may still be computing: don't wait for it.
-        runtime.shutdown_background();
+        let outcome = Launch::new(loaded)
+            .out(target.out)
+            .seed(target.seed)
+            .clock(clock)
+            .progress(mode)
+            .live(board)
+            .record_mcap(target.record_mcap)
+            .resume(target.resume)
+            .run_blocking(cancel.clone());
         let outcome = outcome.context("recording the run")?;
         out!("{}", outcome.dir.display());
         let status = outcome.status.name();

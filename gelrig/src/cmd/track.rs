@@ -115,20 +115,20 @@ impl Cmd {
                     dir: dir.clone(),
                     reference,
                 },
-                dir.join("markers.csv"),
+                dir.join(rundir::names::MARKERS),
             ),
             (None, Some(reference)) => (
                 Input::Files {
                     reference,
                     frames: self.inputs,
                 },
-                PathBuf::from("markers.csv"),
+                PathBuf::from(rundir::names::MARKERS),
             ),
             (None, None) if self.reference_free => (
                 Input::ReferenceFree {
                     frames: self.inputs,
                 },
-                PathBuf::from("markers.csv"),
+                PathBuf::from(rundir::names::MARKERS),
             ),
             (None, None) => {
                 err!(
@@ -288,7 +288,7 @@ impl Cmd {
                         return Ok(ExitCode::from(super::EXIT_INVALID));
                     }
                 };
-            let path = summary.markers_csv.with_file_name("wrench.csv");
+            let path = summary.markers_csv.with_file_name(rundir::names::WRENCH);
             sensing::sensor::write_wrench_csv(&rows, &path)?;
             if let Some(peak) = rows
                 .iter()

@@ -50,6 +50,23 @@ pub(crate) fn writer(port: &LinePort, device: &str) -> Result<LineWriter, RigErr
     Ok(Arc::new(Mutex::new(clone)))
 }
 
+/// A stop that writes one line to a serial controller without waiting for its reply (the
+/// watchdog's path: SMC100 `1ST`, Zaber `/1 1 stop`), on the writer the axis keeps for it.
+pub(crate) struct LineStopper {
+    /// The stop command, line ending included.
+    pub(crate) line: String,
+    pub(crate) writer: LineWriter,
+    /// The device, for errors.
+    pub(crate) name: String,
+}
+
+#[async_trait::async_trait]
+impl crate::device::AxisStopper for LineStopper {
+    async fn stop_now(&self) -> Result<(), RigError> {
+        send_only(&self.writer, self.line.clone(), &self.name).await
+    }
+}
+
 /// Writes `line` through `w` on the blocking pool, without reading any reply.
 pub(crate) async fn send_only(w: &LineWriter, line: String, device: &str) -> Result<(), RigError> {
     let w = w.clone();

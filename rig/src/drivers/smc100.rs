@@ -194,20 +194,6 @@ fn exchange(port: &LinePort, line: &str, echo: Option<&str>, timeout: Duration) 
     }
 }
 
-/// Writes `ST` (a set command: no reply) on the port's second handle.
-struct Smc100Stopper {
-    line: String,
-    writer: LineWriter,
-    name: String,
-}
-
-#[async_trait]
-impl AxisStopper for Smc100Stopper {
-    async fn stop_now(&self) -> Result<(), RigError> {
-        serial_line::send_only(&self.writer, self.line.clone(), &self.name).await
-    }
-}
-
 #[async_trait]
 impl Axis for Smc100Axis {
     fn info(&self) -> &AxisInfo {
@@ -215,7 +201,7 @@ impl Axis for Smc100Axis {
     }
 
     fn stopper(&self) -> std::sync::Arc<dyn AxisStopper> {
-        std::sync::Arc::new(Smc100Stopper {
+        std::sync::Arc::new(serial_line::LineStopper {
             line: format!("{}ST\r\n", self.s.address),
             writer: self.stop_line.clone(),
             name: self.name(),

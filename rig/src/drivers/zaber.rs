@@ -176,20 +176,6 @@ fn exchange(
     }
 }
 
-/// Writes `stop` with the reserved id on the port's second handle.
-struct ZaberStopper {
-    line: String,
-    writer: LineWriter,
-    name: String,
-}
-
-#[async_trait]
-impl AxisStopper for ZaberStopper {
-    async fn stop_now(&self) -> Result<(), RigError> {
-        serial_line::send_only(&self.writer, self.line.clone(), &self.name).await
-    }
-}
-
 #[async_trait]
 impl Axis for ZaberAxis {
     fn info(&self) -> &AxisInfo {
@@ -199,7 +185,7 @@ impl Axis for ZaberAxis {
     fn stopper(&self) -> std::sync::Arc<dyn AxisStopper> {
         let s = &self.settings;
         let body = format!("{} {} {STOP_ID} stop", s.device, s.axis);
-        std::sync::Arc::new(ZaberStopper {
+        std::sync::Arc::new(serial_line::LineStopper {
             line: format!("/{}\n", with_checksum(&body, s.checksum)),
             writer: self.stop_line.clone(),
             name: device_name(s),

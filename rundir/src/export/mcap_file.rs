@@ -88,9 +88,9 @@ struct MarkerRow {
 
 /// Writes `run_dir` as MCAP to `out`.
 pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> {
-    if !run_dir.join("run.yaml").is_file() {
+    if !run_dir.join(crate::names::MANIFEST).is_file() {
         return Err(RunDirError::Missing {
-            path: run_dir.join("run.yaml"),
+            path: run_dir.join(crate::names::MANIFEST),
             detail: "not a run directory".into(),
         }
         .into());
@@ -107,7 +107,11 @@ pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> 
         RecordsError::Mcap(e) => m(e),
     })?;
     // The run's own files, and what it was.
-    for name in ["protocol.yaml", "rig.yaml", "run.yaml"] {
+    for name in [
+        crate::names::PROTOCOL,
+        crate::names::RIG,
+        crate::names::MANIFEST,
+    ] {
         if let Ok(bytes) = std::fs::read(run_dir.join(name)) {
             w.attach(name, bytes).map_err(m)?;
         }
@@ -149,12 +153,13 @@ pub(crate) fn write_records<W: std::io::Write + std::io::Seek>(
     run_dir: &Path,
     w: &mut Ros2Mcap<W>,
 ) -> Result<(), RecordsError> {
-    for r in read_optional::<ForceRow>(&run_dir.join("force.csv"))?.unwrap_or_default() {
+    for r in read_optional::<ForceRow>(&run_dir.join(crate::names::FORCE))?.unwrap_or_default() {
         let v = [r.fx_n, r.fy_n, r.fz_n, r.tx_nmm, r.ty_nmm, r.tz_nmm];
         w.wrench(r.t_ns, v)?;
     }
     // Frames: the PNG bytes as recorded.
-    let frames: Vec<FrameFileRow> = read_optional(&run_dir.join("frames.csv"))?.unwrap_or_default();
+    let frames: Vec<FrameFileRow> =
+        read_optional(&run_dir.join(crate::names::FRAMES))?.unwrap_or_default();
     for f in &frames {
         let path = run_dir.join(&f.file);
         let bytes = std::fs::read(&path).map_err(|e| RunDirError::Missing {
@@ -164,7 +169,8 @@ pub(crate) fn write_records<W: std::io::Write + std::io::Seek>(
         w.png(f.t_ns, &bytes)?;
     }
     // Markers, where the run was tracked: each frame's displacement lines at its time.
-    let markers: Vec<MarkerRow> = read_optional(&run_dir.join("markers.csv"))?.unwrap_or_default();
+    let markers: Vec<MarkerRow> =
+        read_optional(&run_dir.join(crate::names::MARKERS))?.unwrap_or_default();
     let time_of: BTreeMap<u64, u64> = frames.iter().map(|f| (f.frame, f.t_ns)).collect();
     for chunk in markers.chunk_by(|a, b| a.frame == b.frame) {
         let frame = chunk[0].frame;
@@ -177,17 +183,17 @@ pub(crate) fn write_records<W: std::io::Write + std::io::Seek>(
         w.markers(t, frame, &lines)?;
     }
     // Stage positions, SI: m for linear axes, rad for rotary ones.
-    let rig_yaml = std::fs::read_to_string(run_dir.join("rig.yaml")).unwrap_or_default();
+    let rig_yaml = std::fs::read_to_string(run_dir.join(crate::names::RIG)).unwrap_or_default();
     let rotary = rotary_axes(&rig_yaml);
-    for r in read_optional::<AxesRow>(&run_dir.join("axes.csv"))?.unwrap_or_default() {
+    for r in read_optional::<AxesRow>(&run_dir.join(crate::names::AXES))?.unwrap_or_default() {
         if let Some(p) = r.position {
             w.joint(r.t_ns, &r.axis, si(p, rotary.contains(&r.axis)))?;
         }
     }
     // Steps at their ends and grasp frames' tactile state, each row as JSON.
     for (file, topic, time_column) in [
-        ("steps.csv", Topic::Steps, "t_end_ns"),
-        ("tactile.csv", Topic::Tactile, "t_ns"),
+        (crate::names::STEPS, Topic::Steps, "t_end_ns"),
+        (crate::names::TACTILE, Topic::Tactile, "t_ns"),
     ] {
         let path = run_dir.join(file);
         if !path.is_file() {

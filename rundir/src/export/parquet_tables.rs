@@ -234,7 +234,7 @@ pub struct ParquetExport {
 /// Exports `path` — a run directory, or a folder of them (a campaign, with a `run` column) —
 /// as Parquet files into `out`.
 pub fn export_parquet(path: &Path, out: &Path) -> Result<ParquetExport, ExportError> {
-    let campaign = !path.join("run.yaml").is_file();
+    let campaign = !path.join(crate::names::MANIFEST).is_file();
     let runs: Vec<PathBuf> = if campaign {
         let mut v: Vec<PathBuf> = std::fs::read_dir(path)
             .map_err(|e| RunDirError::Missing {
@@ -243,7 +243,7 @@ pub fn export_parquet(path: &Path, out: &Path) -> Result<ParquetExport, ExportEr
             })?
             .filter_map(Result::ok)
             .map(|e| e.path())
-            .filter(|p| p.join("run.yaml").is_file())
+            .filter(|p| p.join(crate::names::MANIFEST).is_file())
             .collect();
         v.sort();
         v
@@ -252,7 +252,7 @@ pub fn export_parquet(path: &Path, out: &Path) -> Result<ParquetExport, ExportEr
     };
     if runs.is_empty() {
         return Err(RunDirError::Missing {
-            path: path.join("run.yaml"),
+            path: path.join(crate::names::MANIFEST),
             detail: "neither a run directory nor a folder of runs".into(),
         }
         .into());

@@ -55,7 +55,7 @@ impl FrameWriter {
         let (tx, rx) = sync_channel::<Job>(QUEUE);
         let error = Arc::new(Mutex::new(None));
         let slot = Arc::clone(&error);
-        let frames = CsvFile::create(dir.join("frames.csv"))?;
+        let frames = CsvFile::create(dir.join(crate::names::FRAMES))?;
         let handle = std::thread::Builder::new()
             .name("frame-writer".into())
             .spawn(move || run(dir, frames, rx, slot, mcap))
@@ -190,7 +190,7 @@ fn write(
         trial,
         force,
     } = job;
-    let file = format!("frames/{n:06}.png");
+    let file = crate::names::frame_png(*n);
     let path = dir.join(&file);
     let frame_err = |detail: String| RecordError::Frame {
         path: path.clone(),
@@ -239,7 +239,7 @@ fn write(
         sim_t_ns: frame.truth_t_ns,
     })?;
     if let Some(truth) = &frame.truth_px {
-        let path = dir.join("sim_markers.csv");
+        let path = dir.join(crate::names::SIM_MARKERS);
         for (id, [x, y]) in truth.iter().enumerate() {
             let row = MarkerTruthRow {
                 frame: *n,

@@ -150,7 +150,7 @@ pub struct Segment {
 
 /// Reads a run directory's manifest.
 pub fn read_manifest(dir: &Path) -> Result<Manifest, String> {
-    let path = dir.join("run.yaml");
+    let path = dir.join(crate::names::MANIFEST);
     let text =
         fs::read_to_string(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     serde_yaml::from_str(&text).map_err(|e| format!("cannot parse {}: {e}", path.display()))
@@ -188,7 +188,10 @@ pub fn run_file(dir: &Path, name: &str) -> Result<std::path::PathBuf, String> {
 
 /// True if a process still holds the run's lock (the run is really in progress).
 pub fn is_locked(dir: &Path) -> bool {
-    match OpenOptions::new().write(true).open(dir.join("run.lock")) {
+    match OpenOptions::new()
+        .write(true)
+        .open(dir.join(crate::names::LOCK))
+    {
         Ok(f) => f.try_lock().is_err(),
         Err(_) => false,
     }

@@ -107,7 +107,11 @@ impl LiveMcap {
     /// Attaches the run's files and its manifest, writes the summary and closes the file.
     pub(super) fn finish(&self, dir: &Path, manifest: &super::Manifest) {
         self.with(|w, _| {
-            for name in ["protocol.yaml", "rig.yaml", "run.yaml"] {
+            for name in [
+                crate::names::PROTOCOL,
+                crate::names::RIG,
+                crate::names::MANIFEST,
+            ] {
                 if let Ok(bytes) = std::fs::read(dir.join(name)) {
                     w.attach(name, bytes)?;
                 }

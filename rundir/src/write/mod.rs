@@ -24,7 +24,7 @@ mod frame_writer;
 mod manifest;
 mod mcap_live;
 mod reopen;
-mod rows;
+pub mod rows;
 
 use std::fs::{self, File, OpenOptions};
 use std::path::{Path, PathBuf};
@@ -108,7 +108,7 @@ fn append_to<T: serde::Serialize>(
 /// Opens and locks the run's `run.lock` for the life of the recorder; fails if another
 /// process holds it.
 fn take_lock(dir: &Path) -> Result<File, RecordError> {
-    let lock_path = dir.join("run.lock");
+    let lock_path = dir.join(crate::names::LOCK);
     let lock = OpenOptions::new()
         .create(true)
         .truncate(false)
@@ -167,13 +167,13 @@ impl Recorder {
         }
         let lock = take_lock(&dir)?;
         // First, before anything else can fill the disk.
-        let reserve = Reserve::hold(dir.join("run.reserve"))?;
-        let p = dir.join("protocol.yaml");
+        let reserve = Reserve::hold(dir.join(crate::names::RESERVE))?;
+        let p = dir.join(crate::names::PROTOCOL);
         fs::write(&p, protocol_yaml).map_err(io(&p))?;
-        let p = dir.join("rig.yaml");
+        let p = dir.join(crate::names::RIG);
         fs::write(&p, rig_yaml).map_err(io(&p))?;
-        let journal = Appender::create(dir.join("journal.jsonl"))?;
-        let steps = CsvFile::with_header_of(dir.join("steps.csv"), &StepRow::example())?;
+        let journal = Appender::create(dir.join(crate::names::JOURNAL))?;
+        let steps = CsvFile::with_header_of(dir.join(crate::names::STEPS), &StepRow::example())?;
         let mut rec = Self {
             dir,
             manifest,
@@ -197,7 +197,7 @@ impl Recorder {
     /// Also writes the run as it goes to `run.mcap` (ROS 2 messages, as `gelrig export
     /// --format mcap` writes them); `rig_yaml` tells which axes are rotary. Before any data.
     pub fn record_mcap(&mut self, rig_yaml: &str) -> Result<(), RecordError> {
-        let m = mcap_live::LiveMcap::create(&self.dir.join("run.mcap"), rig_yaml)?;
+        let m = mcap_live::LiveMcap::create(&self.dir.join(crate::names::MCAP), rig_yaml)?;
         self.mcap = Some(m);
         Ok(())
     }
@@ -206,7 +206,7 @@ impl Recorder {
     /// every record the directory holds from the earlier segments, then as the run goes.
     /// Before any new data.
     pub fn record_mcap_resumed(&mut self, rig_yaml: &str) -> Result<(), RecordError> {
-        let m = mcap_live::LiveMcap::create(&self.dir.join("run.mcap"), rig_yaml)?;
+        let m = mcap_live::LiveMcap::create(&self.dir.join(crate::names::MCAP), rig_yaml)?;
         m.write_earlier(&self.dir);
         self.mcap = Some(m);
         Ok(())
@@ -269,7 +269,7 @@ impl Recorder {
     }
 
     fn write_manifest(&mut self) -> Result<(), RecordError> {
-        let path = self.dir.join("run.yaml");
+        let path = self.dir.join(crate::names::MANIFEST);
         let text = serde_yaml::to_string(&self.manifest).map_err(|e| RecordError::Io {
             path: path.clone(),
             source: std::io::Error::other(e.to_string()),
@@ -332,7 +332,7 @@ impl Recorder {
             ];
             m.with(|w, _| w.wrench(row.t_ns, v));
         }
-        self.data(|r| append_to(&mut r.force, r.dir.join("force.csv"), &row))
+        self.data(|r| append_to(&mut r.force, r.dir.join(crate::names::FORCE), &row))
             .map(|_| ())
     }
 
@@ -358,7 +358,7 @@ impl Recorder {
                 w.joint(t_ns, axis, crate::ros2::si(row.position, rot))
             });
         }
-        self.data(|r| append_to(&mut r.axes, r.dir.join("axes.csv"), &row))
+        self.data(|r| append_to(&mut r.axes, r.dir.join(crate::names::AXES), &row))
             .map(|_| ())
     }
 
@@ -415,7 +415,7 @@ impl Recorder {
             object_slips: t.object_slips,
         };
         self.data(|r| {
-            append_to(&mut r.sim_steps, r.dir.join("sim_steps.csv"), &row)?;
+            append_to(&mut r.sim_steps, r.dir.join(crate::names::SIM_STEPS), &row)?;
             r.sim_steps.as_mut().map_or(Ok(()), CsvFile::sync)
         })
         .map(|_| ())
@@ -424,7 +424,7 @@ impl Recorder {
     /// Appends a frame's live tactile state to `tactile.csv`.
     pub fn tactile(&mut self, row: &TactileRow) -> Result<(), RecordError> {
         self.json_message(crate::ros2::Topic::Tactile, row.t_ns, row);
-        self.data(|r| append_to(&mut r.tactile, r.dir.join("tactile.csv"), row))
+        self.data(|r| append_to(&mut r.tactile, r.dir.join(crate::names::TACTILE), row))
             .map(|_| ())
     }
 

@@ -29,17 +29,17 @@ impl Recorder {
     ) -> Result<(Self, Vec<(String, u64)>), RecordError> {
         let lock = super::take_lock(dir)?;
         let mut manifest = read_manifest(dir).map_err(|e| refused(dir, e))?;
-        let reserve = Reserve::hold(dir.join("run.reserve"))?;
-        let journal = Appender::create(dir.join("journal.jsonl"))?;
-        let steps = CsvFile::with_header_of(dir.join("steps.csv"), &StepRow::example())?;
+        let reserve = Reserve::hold(dir.join(crate::names::RESERVE))?;
+        let journal = Appender::create(dir.join(crate::names::JOURNAL))?;
+        let steps = CsvFile::with_header_of(dir.join(crate::names::STEPS), &StepRow::example())?;
         let mut cut = Vec::new();
         let mut note = |name: &str, bytes: u64| {
             if bytes > 0 {
                 cut.push((name.to_string(), bytes));
             }
         };
-        note("journal.jsonl", journal.cut_bytes());
-        note("steps.csv", steps.cut_bytes());
+        note(crate::names::JOURNAL, journal.cut_bytes());
+        note(crate::names::STEPS, steps.cut_bytes());
         let mut stream = |name: &str| -> Result<Option<CsvFile>, RecordError> {
             let path = dir.join(name);
             if !path.is_file() {
@@ -49,10 +49,10 @@ impl Recorder {
             note(name, f.cut_bytes());
             Ok(Some(f))
         };
-        let force = stream("force.csv")?;
-        let axes = stream("axes.csv")?;
-        let sim_steps = stream("sim_steps.csv")?;
-        let tactile = stream("tactile.csv")?;
+        let force = stream(crate::names::FORCE)?;
+        let axes = stream(crate::names::AXES)?;
+        let sim_steps = stream(crate::names::SIM_STEPS)?;
+        let tactile = stream(crate::names::TACTILE)?;
         // frames.csv and sim_markers.csv are opened by the frame writer at the first frame;
         // their torn tails are cut then (and not reported).
         let frame_count = next_frame_number(dir)?;
@@ -96,7 +96,7 @@ fn next_frame_number(dir: &Path) -> Result<u64, RecordError> {
             }
         }
     }
-    let csv_path = dir.join("frames.csv");
+    let csv_path = dir.join(crate::names::FRAMES);
     if csv_path.is_file() {
         let mut r = csv::Reader::from_path(&csv_path).map_err(|e| RecordError::Csv {
             path: csv_path.clone(),

@@ -388,3 +388,87 @@ mod views {
         assert!(r.is_err());
     }
 }
+
+/// One row of `markers.csv`.
+#[derive(Debug, Serialize)]
+pub struct MarkerRow<'a> {
+    /// Frame number (0: the reference).
+    pub frame: u64,
+    /// The image the frame came from.
+    pub file: &'a str,
+    /// The marker's identity, fixed for the sequence.
+    pub id: usize,
+    /// Position, px.
+    pub x_px: f64,
+    /// Position, px.
+    pub y_px: f64,
+    /// Displacement from the reference, px.
+    pub dx_px: f64,
+    /// Displacement from the reference, px.
+    pub dy_px: f64,
+    /// `tracked`, `border`, `merged`, `predicted`, `out_of_view`, `ambiguous` or `lost`.
+    pub state: &'static str,
+    /// Confidence in the identity, 0–1 (0 when not measured).
+    pub confidence: f64,
+}
+
+/// One row of `contact.csv` (empty centroid and mm columns where unknown).
+#[derive(Debug, Serialize)]
+pub struct ContactRow {
+    /// Frame number.
+    pub frame: u64,
+    /// Area of the region, px² (0 without contact).
+    pub area_px2: f64,
+    /// Area, mm², where the image scale is known.
+    pub area_mm2: Option<f64>,
+    /// Centroid, px.
+    pub cx_px: Option<f64>,
+    /// Centroid, px.
+    pub cy_px: Option<f64>,
+    /// Equivalent radius, mm.
+    pub radius_mm: Option<f64>,
+    /// Equivalent radius, px.
+    pub radius_px: f64,
+    /// Central second moments per unit area, px².
+    pub sxx_px2: Option<f64>,
+    /// Central second moments per unit area, px².
+    pub syy_px2: Option<f64>,
+    /// Central second moments per unit area, px².
+    pub sxy_px2: Option<f64>,
+}
+
+/// One row of `wrench.csv`: a frame's wrench read from the GelSight (`gelrig track
+/// --sensor`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct WrenchRow {
+    /// Frame number (0 = the reference).
+    pub frame: u64,
+    /// Time on the run's timebase (empty for frames outside a run).
+    pub t_ns: Option<u64>,
+    /// Step of the run it was taken in (0 outside a run).
+    pub step: u32,
+    /// Force along the image's x, N.
+    pub fx_n: f64,
+    /// Force along y, N.
+    pub fy_n: f64,
+    /// Normal force, N.
+    pub fz_n: f64,
+    /// Torque about the normal, N·mm.
+    pub tz_nmm: f64,
+    /// Standard uncertainty of fx_n, N.
+    pub fx_sd_n: f64,
+    /// Of fy_n, N.
+    pub fy_sd_n: f64,
+    /// Of fz_n, N.
+    pub fz_sd_n: f64,
+    /// Of tz_nmm, N·mm.
+    pub tz_sd_nmm: f64,
+    /// Share of the sensor's markers measured in this frame (the rest filled).
+    pub measured_share: f64,
+    /// Why the frame is outside the calibration, `;`-separated (`shape`, `size`, `place`,
+    /// `view_edge`, `field`, `load`); empty inside it. The uncertainties are widened for
+    /// each.
+    pub outside_calibration: String,
+    /// The share of the contact the view sees (1 where it is whole in view).
+    pub contact_in_view: f64,
+}

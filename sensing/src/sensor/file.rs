@@ -4,7 +4,7 @@
 //! from and how far to trust it.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use analysis::force_sensor::ridge::{ChannelFit, LinearModel};
 use analysis::force_sensor::scale::SCALE_FEATURES;
@@ -28,27 +28,7 @@ pub const METHOD_TRACTION: &str = "traction-map";
 pub const METHOD_SCALE: &str = "scale-fit";
 
 /// Why a sensor file could not be read or written.
-#[derive(Debug, thiserror::Error)]
-pub enum SensorFileError {
-    /// Reading or parsing failed.
-    #[error("{path}: {detail}; fix: {fix}")]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// What went wrong.
-        detail: String,
-        /// What to do.
-        fix: &'static str,
-    },
-    /// Writing failed.
-    #[error("cannot write {path}: {detail}; fix: check the folder exists and is writable")]
-    Write {
-        /// The file.
-        path: PathBuf,
-        /// What went wrong.
-        detail: String,
-    },
-}
+pub type SensorFileError = experiments::artifact::ArtifactError;
 
 /// A calibrated GelSight.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -180,7 +180,7 @@ pub fn wrench_at(force: &[ForceRow], t_ns: u64) -> Option<[f64; 4]> {
 
 /// Frame number → (time, step) of a run directory's frames (empty when it has none).
 pub fn frame_times(run_dir: &Path) -> std::collections::BTreeMap<u64, (u64, u32)> {
-    crate::run_data::read_csv::<crate::run_data::FrameRow>(&run_dir.join("frames.csv"))
+    crate::run_data::read_csv::<crate::run_data::FrameRow>(&run_dir.join(rundir::names::FRAMES))
         .map(|rows| {
             rows.into_iter()
                 .map(|r| (r.frame, (r.t_ns, r.step)))

@@ -6,45 +6,10 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use serde::Serialize;
-
 use super::{RunFrame, SensorError, SensorFile, unfit};
 use crate::run_data::MarkerRow;
 
-/// One frame's wrench read from the GelSight.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct WrenchRow {
-    /// Frame number (0 = the reference).
-    pub frame: u64,
-    /// Time on the run's timebase (empty for frames outside a run).
-    pub t_ns: Option<u64>,
-    /// Step of the run it was taken in (0 outside a run).
-    pub step: u32,
-    /// Force along the image's x, N.
-    pub fx_n: f64,
-    /// Force along y, N.
-    pub fy_n: f64,
-    /// Normal force, N.
-    pub fz_n: f64,
-    /// Torque about the normal, N·mm.
-    pub tz_nmm: f64,
-    /// Standard uncertainty of fx_n, N.
-    pub fx_sd_n: f64,
-    /// Of fy_n, N.
-    pub fy_sd_n: f64,
-    /// Of fz_n, N.
-    pub fz_sd_n: f64,
-    /// Of tz_nmm, N·mm.
-    pub tz_sd_nmm: f64,
-    /// Share of the sensor's markers measured in this frame (the rest filled).
-    pub measured_share: f64,
-    /// Why the frame is outside the calibration, `;`-separated (`shape`, `size`, `place`,
-    /// `view_edge`, `field`, `load`); empty inside it. The uncertainties are widened for
-    /// each.
-    pub outside_calibration: String,
-    /// The share of the contact the view sees (1 where it is whole in view).
-    pub contact_in_view: f64,
-}
+pub use rundir::write::rows::WrenchRow;
 
 /// The wrench of every frame of `frames`, whose reference markers are frame 0's; `origin`
 /// names the recording in errors.
@@ -128,7 +93,7 @@ pub fn frames_of_markers(
     times: &BTreeMap<u64, (u64, u32)>,
 ) -> Result<Vec<RunFrame>, SensorError> {
     let rows: Vec<MarkerRow> = crate::run_data::read_csv(markers_csv)?;
-    let contact_csv = markers_csv.with_file_name("contact.csv");
+    let contact_csv = markers_csv.with_file_name(rundir::names::CONTACT);
     let contact: Vec<crate::run_data::ContactRow> = if contact_csv.is_file() {
         crate::run_data::read_csv(&contact_csv)?
     } else {

@@ -90,7 +90,7 @@ pub(super) fn frame_list(input: &Input) -> Result<FrameList, TrackFailure> {
                 .collect(),
         )),
         Input::RunDir { dir, reference } => {
-            let list = dir.join("frames.csv");
+            let list = dir.join(rundir::names::FRAMES);
             let mut rd = csv::Reader::from_path(&list).map_err(|e| TrackFailure::RunDir {
                 dir: dir.clone(),
                 detail: format!(
@@ -174,7 +174,7 @@ pub(super) fn sim_truth(input: &Input) -> Option<HashMap<u64, Vec<[f64; 2]>>> {
         x_px: f64,
         y_px: f64,
     }
-    let mut rd = csv::Reader::from_path(dir.join("sim_markers.csv")).ok()?;
+    let mut rd = csv::Reader::from_path(dir.join(rundir::names::SIM_MARKERS)).ok()?;
     let mut out: HashMap<u64, Vec<[f64; 2]>> = HashMap::new();
     for row in rd.deserialize::<Row>() {
         let r = row.ok()?;
@@ -191,9 +191,11 @@ pub(super) fn sim_truth(input: &Input) -> Option<HashMap<u64, Vec<[f64; 2]>>> {
 /// larger of the two ratios, as the camera fits the view into the frame). `None` when the
 /// run's protocol does not load.
 pub(crate) fn run_scale(dir: &Path, width: usize, height: usize) -> Option<f64> {
-    let loaded =
-        experiments::protocol::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml")))
-            .ok()?;
+    let loaded = experiments::protocol::load(
+        &dir.join(rundir::names::PROTOCOL),
+        Some(&dir.join(rundir::names::RIG)),
+    )
+    .ok()?;
     let spec = experiments::protocol::plant_spec(&loaded.protocol, &loaded.compiled).ok()?;
     let s = (spec.view_width_mm / width as f64).max(spec.view_height_mm / height as f64);
     (s.is_finite() && s > 0.0).then_some(s)

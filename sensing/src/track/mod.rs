@@ -11,7 +11,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use serde::Serialize;
+use rundir::write::rows::{ContactRow, MarkerRow};
 use tracking::field::MarkerField;
 use tracking::field::decompose;
 use tracking::{FrameCheck, MarkerState, Method, Pipeline, RgbView, TrackError, TrackParams};
@@ -204,52 +204,21 @@ pub(super) fn write_err(path: &Path) -> impl Fn(String) -> TrackFailure + '_ {
     }
 }
 
-/// One row of `markers.csv`.
-#[derive(Debug, Serialize)]
-struct MarkerRow<'a> {
-    frame: u64,
-    /// The image the frame came from.
-    file: &'a str,
-    id: usize,
-    x_px: f64,
-    y_px: f64,
-    dx_px: f64,
-    dy_px: f64,
-    state: &'static str,
-    /// Confidence in the identity, 0–1 (0 when not measured).
-    confidence: f64,
-}
-
-/// One row of `contact.csv` (empty centroid and mm columns where unknown).
-#[derive(Debug, Serialize)]
-struct ContactRow {
-    frame: u64,
-    area_px2: f64,
-    area_mm2: Option<f64>,
-    cx_px: Option<f64>,
-    cy_px: Option<f64>,
-    radius_mm: Option<f64>,
-    radius_px: f64,
-    sxx_px2: Option<f64>,
-    syy_px2: Option<f64>,
-    sxy_px2: Option<f64>,
-}
-
-impl ContactRow {
-    fn new(frame: u64, c: Option<&ContactRegion>, mm_per_px: Option<f64>) -> Self {
-        let (area, radius) = c.map_or((0.0, 0.0), |c| (c.area_px2, c.radius_px));
-        Self {
-            frame,
-            area_px2: r4(area),
-            area_mm2: mm_per_px.map(|s| r4(area * s * s)),
-            cx_px: c.map(|c| r4(c.centroid_px[0])),
-            cy_px: c.map(|c| r4(c.centroid_px[1])),
-            radius_mm: mm_per_px.map(|s| r4(radius * s)),
-            radius_px: r4(radius),
-            sxx_px2: c.map(|c| r4(c.second_moments_px2[0])),
-            syy_px2: c.map(|c| r4(c.second_moments_px2[1])),
-            sxy_px2: c.map(|c| r4(c.second_moments_px2[2])),
-        }
+/// The row of `contact.csv` for a frame's contact region (empty centroid and mm columns
+/// where unknown).
+fn contact_row(frame: u64, c: Option<&ContactRegion>, mm_per_px: Option<f64>) -> ContactRow {
+    let (area, radius) = c.map_or((0.0, 0.0), |c| (c.area_px2, c.radius_px));
+    ContactRow {
+        frame,
+        area_px2: r4(area),
+        area_mm2: mm_per_px.map(|s| r4(area * s * s)),
+        cx_px: c.map(|c| r4(c.centroid_px[0])),
+        cy_px: c.map(|c| r4(c.centroid_px[1])),
+        radius_mm: mm_per_px.map(|s| r4(radius * s)),
+        radius_px: r4(radius),
+        sxx_px2: c.map(|c| r4(c.second_moments_px2[0])),
+        syy_px2: c.map(|c| r4(c.second_moments_px2[1])),
+        sxy_px2: c.map(|c| r4(c.second_moments_px2[2])),
     }
 }
 
@@ -312,7 +281,7 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         fs::create_dir_all(parent).map_err(|e| write_err(parent)(e.to_string()))?;
     }
     let mut csv_out = csv::Writer::from_path(out).map_err(|e| write_err(out)(e.to_string()))?;
-    let contact_path = contact.then(|| out.with_file_name("contact.csv"));
+    let contact_path = contact.then(|| out.with_file_name(rundir::names::CONTACT));
     if contact_path.as_deref() == Some(out) {
         return Err(TrackFailure::Usage {
             detail: format!(
@@ -387,7 +356,7 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         }
         csv_out.flush().map_err(|e| write_err(out)(e.to_string()))?;
         if let (Some(w), Some(path)) = (contact_out.as_mut(), &contact_path) {
-            w.serialize(ContactRow::new(frame, pipeline.contact(), mm_per_px))
+            w.serialize(contact_row(frame, pipeline.contact(), mm_per_px))
                 .map_err(|e| write_err(path)(e.to_string()))?;
             w.flush().map_err(|e| write_err(path)(e.to_string()))?;
         }

@@ -160,16 +160,37 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
         return None;
     }
     let span = t[n - 1] - t[0];
-    let dt = span / (n - 1) as f64;
     if span <= 0.0 || !y.iter().all(|v| v.is_finite()) {
         return None;
     }
-    // Grid of candidate τ from a couple of samples to ten record lengths.
+    let start = grid_start(t, y, terms)?;
+    // Levenberg–Marquardt on θ over the projected residual.
+    let residual = |theta: &[f64]| -> Option<DVector<f64>> {
+        let taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
+        linear_part(t, y, &taus).map(|(_, r)| r)
+    };
+    let (mut theta, converged) = levenberg_marquardt(start, 200, residual)?;
+    // Order by τ, then a Gauss–Newton polish over all parameters with the exact Jacobian.
+    theta.sort_by(|a, b| a.total_cmp(b));
+    let taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
+    let (c, _) = linear_part(t, y, &taus)?;
+    let start: Vec<f64> = c.iter().copied().chain(theta.iter().copied()).collect();
+    let params = polish(t, y, terms, start);
+    Some(summarise(t, y, terms, params, converged))
+}
+
+/// The starting log-time-constants of the variable projection: the best combination of
+/// `terms` values on a logarithmic grid from a couple of samples to ten record lengths
+/// (coarsened for more terms), each scored by the residual of its linear least squares.
+/// Variable projection from a poor start finds a poor local minimum; the grid is cheap,
+/// since the columns e^{−t/τ} are computed once.
+fn grid_start(t: &[f64], y: &[f64], terms: usize) -> Option<Vec<f64>> {
+    let n = t.len();
+    let span = t[n - 1] - t[0];
+    let dt = span / (n - 1) as f64;
     let grid: Vec<f64> = (0..48)
         .map(|i| (2.0 * dt).ln() + i as f64 / 47.0 * ((10.0 * span).ln() - (2.0 * dt).ln()))
         .collect();
-    // Columns e^{−t/τ} of every grid τ, computed once; each candidate combination then
-    // only assembles its small normal equations from them.
     let columns: Vec<Vec<f64>> = grid
         .iter()
         .map(|th| t.iter().map(|ti| (-ti / th.exp()).exp()).collect())
@@ -219,10 +240,7 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
         }
         // Next combination on the (coarsened) grid.
         let mut k = 0;
-        loop {
-            if k == terms {
-                break;
-            }
+        while k < terms {
             idx[k] += step;
             if idx[k] < grid.len() {
                 break;
@@ -234,41 +252,41 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
             break;
         }
     }
-    if !best.0.is_finite() {
-        return None;
-    }
-    // Levenberg–Marquardt on θ over the projected residual.
-    let residual = |theta: &[f64]| -> Option<DVector<f64>> {
-        let taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
-        linear_part(t, y, &taus).map(|(_, r)| r)
-    };
-    let (mut theta, converged) = levenberg_marquardt(best.1, 200, residual)?;
-    // Order by τ, then a Gauss–Newton polish over all parameters with the exact Jacobian.
-    theta.sort_by(|a, b| a.total_cmp(b));
-    let taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
-    let (c, _) = linear_part(t, y, &taus)?;
-    let mut params: Vec<f64> = c.iter().copied().chain(theta.iter().copied()).collect();
-    let p = params.len();
-    let model_jac = |params: &[f64]| -> (DVector<f64>, DMatrix<f64>) {
-        let mut res = DVector::zeros(n);
-        let mut jac = DMatrix::zeros(n, p);
-        for i in 0..n {
-            let mut f = params[0];
-            jac[(i, 0)] = 1.0;
-            for k in 0..terms {
-                let (a, tau) = (params[1 + k], params[1 + terms + k].exp());
-                let e = (-t[i] / tau).exp();
-                f += a * e;
-                jac[(i, 1 + k)] = e;
-                // ∂/∂log τ of A e^{−t/τ} = A e^{−t/τ} · t/τ.
-                jac[(i, 1 + terms + k)] = a * e * t[i] / tau;
-            }
-            res[i] = y[i] - f;
+    best.0.is_finite().then_some(best.1)
+}
+
+/// The model f(t) = F∞ + Σ Aₖ e^{−t/τₖ} with `params` = [F∞, A…, log τ…]: its residual
+/// y − f and its exact Jacobian (∂/∂log τ of A e^{−t/τ} = A e^{−t/τ} · t/τ).
+fn model_and_jacobian(
+    t: &[f64],
+    y: &[f64],
+    terms: usize,
+    params: &[f64],
+) -> (DVector<f64>, DMatrix<f64>) {
+    let (n, p) = (t.len(), params.len());
+    let mut res = DVector::zeros(n);
+    let mut jac = DMatrix::zeros(n, p);
+    for i in 0..n {
+        let mut f = params[0];
+        jac[(i, 0)] = 1.0;
+        for k in 0..terms {
+            let (a, tau) = (params[1 + k], params[1 + terms + k].exp());
+            let e = (-t[i] / tau).exp();
+            f += a * e;
+            jac[(i, 1 + k)] = e;
+            jac[(i, 1 + terms + k)] = a * e * t[i] / tau;
         }
-        (res, jac)
-    };
+        res[i] = y[i] - f;
+    }
+    (res, jac)
+}
+
+/// A few Gauss–Newton steps over all parameters with the exact Jacobian, each taken only
+/// if it lowers the residual and leaves a finite Jacobian (a step that drives a time
+/// constant to 0 or ∞ is refused).
+fn polish(t: &[f64], y: &[f64], terms: usize, mut params: Vec<f64>) -> Vec<f64> {
     for _ in 0..5 {
-        let (res, jac) = model_jac(&params);
+        let (res, jac) = model_and_jacobian(t, y, terms, &params);
         let Some(delta) = (jac.transpose() * &jac)
             .lu()
             .solve(&(jac.transpose() * &res))
@@ -280,15 +298,21 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
             .zip(delta.iter())
             .map(|(a, d)| a + d)
             .collect();
-        // A step that drives a time constant to 0 or ∞ leaves a non-finite Jacobian: refused.
-        let (cand_res, cand_jac) = model_jac(&cand);
+        let (cand_res, cand_jac) = model_and_jacobian(t, y, terms, &cand);
         if cand_jac.iter().all(|v| v.is_finite()) && cand_res.norm_squared() <= res.norm_squared() {
             params = cand;
         } else {
             break;
         }
     }
-    let (res, jac) = model_jac(&params);
+    params
+}
+
+/// The fit at `params`: F∞, amplitudes, time constants, the residual, F∞'s standard error
+/// from (JᵀJ)⁻¹ and the Jacobian's condition number.
+fn summarise(t: &[f64], y: &[f64], terms: usize, params: Vec<f64>, converged: bool) -> ExpFit {
+    let (n, p) = (t.len(), params.len());
+    let (res, jac) = model_and_jacobian(t, y, terms, &params);
     let rss = res.norm_squared();
     let dof = (n - p).max(1) as f64;
     let jtj = jac.transpose() * &jac;
@@ -307,7 +331,7 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
         .try_inverse()
         .map(|inv| (rss / dof * inv[(0, 0)].max(0.0)).sqrt())
         .unwrap_or(f64::INFINITY);
-    Some(ExpFit {
+    ExpFit {
         f_inf: params[0],
         amplitudes: params[1..=terms].to_vec(),
         taus_s: params[1 + terms..].iter().map(|v| v.exp()).collect(),
@@ -316,7 +340,7 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
         sigma_f_inf: sigma,
         condition,
         converged,
-    })
+    }
 }
 
 /// Refits the time constants `start_taus_s` with one more, `held_tau_s`, held fixed (variable

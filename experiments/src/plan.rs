@@ -164,210 +164,262 @@ fn dist(from: Range, to: Range) -> Range {
     Range { min: gap, max: far }
 }
 
-/// Plans `compiled` (from `protocol`) on `rig`.
-pub fn plan(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> Plan {
-    let kin: BTreeMap<AxisRole, AxisKin> = rig
-        .axes
-        .iter()
-        .map(|(r, a)| {
-            (
-                *r,
-                AxisKin {
+/// Where every axis may be as the planner walks the actions, with the rig's speeds and the
+/// camera's rate.
+struct Walk {
+    kin: BTreeMap<AxisRole, AxisKin>,
+    pos: BTreeMap<AxisRole, Pos>,
+    origin: BTreeMap<AxisRole, Range>,
+    fps: f64,
+}
+
+impl Walk {
+    fn new(rig: &RigConfig) -> Self {
+        let kin: BTreeMap<AxisRole, AxisKin> = rig
+            .axes
+            .iter()
+            .map(|(r, a)| {
+                let k = AxisKin {
                     max_speed: a.max_speed.value,
                     travel: a.travel(),
-                },
-            )
+                };
+                (*r, k)
+            })
+            .collect();
+        // Unknown start: an axis may be anywhere in its travel until homed.
+        let pos = kin
+            .iter()
+            .map(|(r, k)| {
+                let anywhere = Range {
+                    min: k.travel.0,
+                    max: k.travel.1,
+                };
+                (*r, Pos::Abs(anywhere))
+            })
+            .collect();
+        Self {
+            kin,
+            pos,
+            origin: BTreeMap::new(),
+            fps: rig.camera.as_ref().map(|c| c.fps.hz()).unwrap_or(25.0),
+        }
+    }
+
+    fn here(&self, r: &AxisRole) -> Pos {
+        self.pos.get(r).copied().unwrap_or(Pos::Rel(0.0))
+    }
+
+    fn origin(&self, r: &AxisRole) -> Range {
+        self.origin.get(r).copied().unwrap_or_default()
+    }
+
+    /// Homing goes at each axis's maximum speed, all at once.
+    fn home(&mut self, axes: &[AxisRole]) -> Range {
+        let mut d = Range::default();
+        for r in axes {
+            let Some(k) = self.kin.get(r) else { continue };
+            let home = 0.0_f64.max(k.travel.0).min(k.travel.1);
+            let to_home = pos_dist(self.here(r), Pos::Abs(Range::point(home)), self.origin(r));
+            d = d.max_of(to_home.scale(1.0 / k.max_speed));
+            self.pos.insert(*r, Pos::Abs(Range::point(home)));
+            self.origin.insert(*r, Range::point(0.0));
+        }
+        d
+    }
+
+    /// A rapid move to `from`, a creep of 0 to `max_travel`, the reference frames; the
+    /// contact (the new origin) is anywhere along the creep.
+    fn approach(&mut self, a: &crate::protocol::compile::ApproachSpec) -> Range {
+        let axis = &a.axis;
+        let here = absolute(self.here(axis), self.origin(axis));
+        let start = a.from.map(Range::point).unwrap_or(here);
+        let speed = self.kin.get(axis).map(|k| k.max_speed).unwrap_or(1.0);
+        let creep = Range {
+            min: 0.0,
+            max: a.max_travel / a.speed,
+        };
+        let d = dist(here, start)
+            .scale(1.0 / speed)
+            .add(creep)
+            .add(Range::point(a.reference_frames as f64 / self.fps));
+        let contact = Range {
+            min: start.min,
+            max: start.max + a.max_travel,
+        };
+        self.origin.insert(*axis, contact);
+        self.pos.insert(*axis, Pos::Rel(0.0));
+        d
+    }
+
+    /// A step's move at its speed, its settle bounds and its frames.
+    fn step(&mut self, s: &crate::protocol::compile::Step) -> Range {
+        let mut d = Range::default();
+        if let (Some(axis), Some(target)) = (s.axis, s.target) {
+            let here = self.here(&axis);
+            let to = match (target, here) {
+                (Target::To(v), _) => Pos::Rel(v),
+                (Target::By(v), Pos::Rel(x)) => Pos::Rel(x + v),
+                (Target::By(v), Pos::Abs(r)) => Pos::Abs(Range {
+                    min: r.min + v,
+                    max: r.max + v,
+                }),
+            };
+            d = match target {
+                Target::By(v) => Range::point(v.abs() / s.speed),
+                Target::To(_) => pos_dist(here, to, self.origin(&axis)).scale(1.0 / s.speed),
+            };
+            if s.until_slip.is_some() {
+                // A move that stops on touch may stop at once.
+                d.min = 0.0;
+            }
+            self.pos.insert(axis, to);
+        }
+        let (smin, smax) = s.settle.bounds_s();
+        d.add(Range {
+            min: smin,
+            max: smax,
         })
-        .collect();
-    let fps = rig.camera.as_ref().map(|c| c.fps.hz()).unwrap_or(25.0);
+        .add(Range::point(s.frames as f64 / self.fps))
+    }
+
+    /// The closing retract: the pressing axes (normal, grip) at full speed, then the others.
+    fn retract(&self, protocol: &Protocol, compiled: &Compiled) -> Range {
+        let mut retract = Range::default();
+        for pressing in [true, false] {
+            let mut phase = Range::default();
+            for (role, q) in &protocol.safety.retract {
+                if !compiled.needs.axes.contains(role) || role.presses() != pressing {
+                    continue;
+                }
+                if let (Some(k), Some(here)) = (self.kin.get(role), self.pos.get(role)) {
+                    let to = Pos::Abs(Range::point(q.raw()));
+                    let d = pos_dist(*here, to, self.origin(role)).scale(1.0 / k.max_speed);
+                    phase = phase.max_of(d);
+                }
+            }
+            retract = retract.add(phase);
+        }
+        retract
+    }
+}
+
+/// The plan's line for one step, ending at `ends_s`.
+fn planned_step(s: &crate::protocol::compile::Step, trial: u32, ends_s: Range) -> PlannedStep {
+    PlannedStep {
+        step: s.step,
+        trial,
+        label: s.label.clone(),
+        phase: s.phase.name().to_string(),
+        axis: s.axis,
+        target: match (s.target, s.unit) {
+            (Some(Target::To(v)), Some(u)) => {
+                format!("{} {}", rig::units::fmt_value(v), u.symbol())
+            }
+            (Some(Target::By(v)), Some(u)) => {
+                format!("by {} {}", rig::units::fmt_value(v), u.symbol())
+            }
+            _ => String::new(),
+        },
+        target_value: match s.target {
+            Some(Target::To(v) | Target::By(v)) => Some(round_noise(v)),
+            None => None,
+        },
+        target_unit: s.unit.map(|u| u.symbol().to_string()),
+        settle: settle_text(&s.settle),
+        frames: s.frames,
+        ends_s,
+    }
+}
+
+/// Rows and frames recorded while the streams of `active` run for `d`.
+#[derive(Default)]
+struct Recorded {
+    frames: Range,
+    force_rows: Range,
+    axes_rows: Range,
+}
+
+impl Recorded {
+    fn during(&mut self, active: StreamRates, d: Range, n_axes: f64) {
+        if let Some(hz) = active.force_hz {
+            self.force_rows = self.force_rows.add(d.scale(hz));
+        }
+        if let Some(hz) = active.axes_hz {
+            self.axes_rows = self.axes_rows.add(d.scale(hz * n_axes));
+        }
+        if let Some(hz) = active.frames_hz {
+            self.frames = self.frames.add(d.scale(hz));
+        }
+    }
+}
+
+/// Plans `compiled` (from `protocol`) on `rig`.
+pub fn plan(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> Plan {
+    let mut walk = Walk::new(rig);
     let frame_bytes = rig
         .camera
         .as_ref()
         .map(|c| c.width as u64 * c.height as u64 * 3 + 1024)
         .unwrap_or(0);
     let n_axes = compiled.needs.axes.len() as f64;
-    // Unknown start: an axis may be anywhere in its travel until homed.
-    let mut pos: BTreeMap<AxisRole, Pos> = kin
-        .iter()
-        .map(|(r, k)| {
-            (
-                *r,
-                Pos::Abs(Range {
-                    min: k.travel.0,
-                    max: k.travel.1,
-                }),
-            )
-        })
-        .collect();
-    let mut origin: BTreeMap<AxisRole, Range> = BTreeMap::new();
     let mut streams: Vec<StreamRates> = Vec::new();
     let mut t = Range::default();
-    let mut frames = Range::default();
-    let mut force_rows = Range::default();
-    let mut axes_rows = Range::default();
+    let mut rec = Recorded::default();
     let mut steps = Vec::new();
     let mut action_s = Vec::new();
-    let speed_of = |r: &AxisRole| kin.get(r).map(|k| k.max_speed).unwrap_or(1.0);
-
     for action in &compiled.actions {
         let active = streams
             .iter()
             .fold(StreamRates::default(), |acc, s| acc.overlay(s));
-        let mut d = Range::default();
         let mut extra_frames = 0.0;
-        match &action.kind {
-            ActionKind::Home { axes } => {
-                for r in axes {
-                    if let Some(k) = kin.get(r) {
-                        let home = 0.0_f64.max(k.travel.0).min(k.travel.1);
-                        let here = pos.get(r).copied().unwrap_or(Pos::Rel(0.0));
-                        let o = origin.get(r).copied().unwrap_or_default();
-                        d = d.max_of(
-                            pos_dist(here, Pos::Abs(Range::point(home)), o)
-                                .scale(1.0 / k.max_speed),
-                        );
-                        pos.insert(*r, Pos::Abs(Range::point(home)));
-                        origin.insert(*r, Range::point(0.0));
-                    }
-                }
-            }
+        let d = match &action.kind {
+            ActionKind::Home { axes } => walk.home(axes),
             ActionKind::Approach(a) => {
-                let (axis, from, speed, max_travel, reference_frames) = (
-                    &a.axis,
-                    &a.from,
-                    &a.speed,
-                    &a.max_travel,
-                    &a.reference_frames,
-                );
-                let o = origin.get(axis).copied().unwrap_or_default();
-                let here = absolute(pos.get(axis).copied().unwrap_or(Pos::Rel(0.0)), o);
-                let start = match from {
-                    Some(f) => Range::point(*f),
-                    None => here,
-                };
-                d = dist(here, start).scale(1.0 / speed_of(axis));
-                d = d.add(Range {
-                    min: 0.0,
-                    max: max_travel / speed,
-                });
-                d = d.add(Range::point(*reference_frames as f64 / fps));
-                extra_frames += *reference_frames as f64;
-                let contact = Range {
-                    min: start.min,
-                    max: start.max + max_travel,
-                };
-                origin.insert(*axis, contact);
-                pos.insert(*axis, Pos::Rel(0.0));
+                extra_frames += a.reference_frames as f64;
+                walk.approach(a)
             }
-            ActionKind::Tare { duration_s } => d = Range::point(*duration_s),
+            ActionKind::Tare { duration_s } => Range::point(*duration_s),
             ActionKind::Step(s) => {
-                if let (Some(axis), Some(target)) = (s.axis, s.target) {
-                    let here = pos.get(&axis).copied().unwrap_or(Pos::Rel(0.0));
-                    let o = origin.get(&axis).copied().unwrap_or_default();
-                    let to = match (target, here) {
-                        (Target::To(v), _) => Pos::Rel(v),
-                        (Target::By(v), Pos::Rel(x)) => Pos::Rel(x + v),
-                        (Target::By(v), Pos::Abs(r)) => Pos::Abs(Range {
-                            min: r.min + v,
-                            max: r.max + v,
-                        }),
-                    };
-                    d = match target {
-                        Target::By(v) => Range::point(v.abs() / s.speed),
-                        Target::To(_) => pos_dist(here, to, o).scale(1.0 / s.speed),
-                    };
-                    if s.until_slip.is_some() {
-                        // A move that stops on touch may stop at once.
-                        d.min = 0.0;
-                    }
-                    pos.insert(axis, to);
-                }
-                let (smin, smax) = s.settle.bounds_s();
-                d = d.add(Range {
-                    min: smin,
-                    max: smax,
-                });
-                d = d.add(Range::point(s.frames as f64 / fps));
+                let d = walk.step(s);
                 extra_frames += s.frames as f64;
-                steps.push(PlannedStep {
-                    step: s.step,
-                    trial: action.trial,
-                    label: s.label.clone(),
-                    phase: s.phase.name().to_string(),
-                    axis: s.axis,
-                    target: match (s.target, s.unit) {
-                        (Some(Target::To(v)), Some(u)) => {
-                            format!("{} {}", rig::units::fmt_value(v), u.symbol())
-                        }
-                        (Some(Target::By(v)), Some(u)) => {
-                            format!("by {} {}", rig::units::fmt_value(v), u.symbol())
-                        }
-                        _ => String::new(),
-                    },
-                    target_value: match s.target {
-                        Some(Target::To(v) | Target::By(v)) => Some(round_noise(v)),
-                        None => None,
-                    },
-                    target_unit: s.unit.map(|u| u.symbol().to_string()),
-                    settle: settle_text(&s.settle),
-                    frames: s.frames,
-                    ends_s: t.add(d),
-                });
+                steps.push(planned_step(s, action.trial, t.add(d)));
+                d
             }
-            ActionKind::StreamsBegin(r) => streams.push(*r),
+            ActionKind::StreamsBegin(r) => {
+                streams.push(*r);
+                Range::default()
+            }
             ActionKind::StreamsEnd => {
                 streams.pop();
+                Range::default()
             }
-            ActionKind::TrialBegin | ActionKind::TrialEnd => {}
-        }
-        if let Some(hz) = active.force_hz {
-            force_rows = force_rows.add(d.scale(hz));
-        }
-        if let Some(hz) = active.axes_hz {
-            axes_rows = axes_rows.add(d.scale(hz * n_axes));
-        }
-        if let Some(hz) = active.frames_hz {
-            frames = frames.add(d.scale(hz));
-        }
-        frames = frames.add(Range::point(extra_frames));
+            ActionKind::TrialBegin | ActionKind::TrialEnd => Range::default(),
+        };
+        rec.during(active, d, n_axes);
+        rec.frames = rec.frames.add(Range::point(extra_frames));
         t = t.add(d);
         action_s.push(d);
     }
-    let mut retract = Range::default();
-    for pressing in [true, false] {
-        let mut phase = Range::default();
-        for (role, q) in &protocol.safety.retract {
-            if !compiled.needs.axes.contains(role) || role.presses() != pressing {
-                continue;
-            }
-            if let (Some(k), Some(here)) = (kin.get(role), pos.get(role)) {
-                let o = origin.get(role).copied().unwrap_or_default();
-                phase = phase.max_of(
-                    pos_dist(*here, Pos::Abs(Range::point(q.raw())), o).scale(1.0 / k.max_speed),
-                );
-            }
-        }
-        retract = retract.add(phase);
-    }
+    let retract = walk.retract(protocol, compiled);
     t = t.add(retract);
     let rows_bytes = |r: Range, b: u64| r.scale(b as f64);
-    let bytes = rows_bytes(force_rows, FORCE_ROW_BYTES)
-        .add(rows_bytes(axes_rows, AXES_ROW_BYTES))
+    let bytes = rows_bytes(rec.force_rows, FORCE_ROW_BYTES)
+        .add(rows_bytes(rec.axes_rows, AXES_ROW_BYTES))
         .add(Range::point(
             (compiled.steps as u64 * STEP_ROW_BYTES) as f64,
         ))
         .add(Range::point(
             (compiled.actions.len() as u64 * 2 * JOURNAL_LINE_BYTES) as f64,
         ))
-        .add(frames.scale(frame_bytes as f64));
+        .add(rec.frames.scale(frame_bytes as f64));
     Plan {
         steps,
         action_s,
         retract_s: retract,
         duration_s: t,
-        frames,
-        force_rows,
-        axes_rows,
+        frames: rec.frames,
+        force_rows: rec.force_rows,
+        axes_rows: rec.axes_rows,
         bytes,
         frame_bytes,
     }

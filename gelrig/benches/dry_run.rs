@@ -7,8 +7,8 @@
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use experiments::load::load;
 use experiments::plan::plan;
-use experiments::protocol::load;
 use runner::{Cancel, Launch, run};
 
 fn dry_run(c: &mut Criterion) {

@@ -13,7 +13,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use experiments::protocol::load;
+use experiments::load::load;
 use runner::run_virtual_blocking;
 use sensing::sensor::calibrate::{CalibrateOptions, Method};
 use sensing::sensor::reader::Reader;
@@ -302,6 +302,125 @@ fn support(root: &Path, tmp: &Path) {
     }
 }
 
+/// Every way `gelrig calibrate` can be asked to calibrate.
+fn methods() -> Vec<(&'static str, CalibrateOptions)> {
+    vec![
+        ("chosen (no flags)", CalibrateOptions::default()),
+        (
+            "moments",
+            CalibrateOptions {
+                method: Some(Method::Moments),
+                symmetric: Some(false),
+                ..CalibrateOptions::default()
+            },
+        ),
+        (
+            "traction",
+            CalibrateOptions {
+                method: Some(Method::Traction),
+                symmetric: Some(false),
+                ..CalibrateOptions::default()
+            },
+        ),
+        (
+            "scale",
+            CalibrateOptions {
+                method: Some(Method::Scale),
+                symmetric: Some(false),
+                ..CalibrateOptions::default()
+            },
+        ),
+        (
+            "moments, symmetric",
+            CalibrateOptions {
+                method: Some(Method::Moments),
+                symmetric: Some(true),
+                ..CalibrateOptions::default()
+            },
+        ),
+        (
+            "traction, symmetric",
+            CalibrateOptions {
+                method: Some(Method::Traction),
+                symmetric: Some(true),
+                ..CalibrateOptions::default()
+            },
+        ),
+        (
+            "scale, symmetric",
+            CalibrateOptions {
+                method: Some(Method::Scale),
+                symmetric: Some(true),
+                ..CalibrateOptions::default()
+            },
+        ),
+    ]
+}
+
+/// Calibrates on `runs` with `opts` and prints the held-out error and each test run's.
+fn one_method(
+    tmp: &Path,
+    name: &str,
+    method: &str,
+    opts: &CalibrateOptions,
+    (runs, cal, tests): (&[PathBuf], &[&str], &[(&str, PathBuf)]),
+) {
+    let sensor: SensorFile = calibrate(runs, opts).expect("calibrate");
+    let path = tmp.join(format!("{name}-{}.yaml", method.replace(", ", "-")));
+    sensor.write(&path).expect("write");
+    let held: Vec<String> = sensor
+        .held_out
+        .channels
+        .values()
+        .map(|s| format!("{:.2}", s.pct_range))
+        .collect();
+    let settings = sensor
+        .traction
+        .map(|t| format!(" (cell {} mm, support {})", t.cell_mm, t.support))
+        .unwrap_or_default();
+    println!(
+        "| {name} | {method}{settings} | calibration, held out ({} frames) | yes | {} |  |",
+        sensor.model.samples,
+        held.join(" | ")
+    );
+    let reader = Reader::new(&sensor);
+    for (p, dir) in tests {
+        let out = tmp.join("report");
+        report::report_with_sensor(dir, Some(&out), Some((&sensor, &path))).expect("report");
+        let summary: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("summary.json")).expect("summary"),
+        )
+        .expect("json");
+        let g = &summary["gelsight_force"];
+        let pct = |c: &str| g[c]["pct_range"].as_f64().unwrap_or(f64::NAN);
+        // The reading alone, tracking done: match once, then each frame.
+        let frames = load_frames(dir).expect("frames");
+        let map = reader
+            .layout
+            .match_markers(&frames[0].field.reference_px)
+            .expect("layout");
+        let mut ms: Vec<f64> = frames
+            .iter()
+            .map(|f| {
+                let started = Instant::now();
+                let r = reader.read(&f.field, f.contact, &map);
+                std::hint::black_box(reader.model.predict(&r.features));
+                started.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        println!(
+            "| {name} | {method} | {p} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.3} |",
+            if cal.contains(p) { "yes" } else { "no" },
+            pct("fx"),
+            pct("fy"),
+            pct("fz"),
+            pct("tz"),
+            ms[ms.len() / 2]
+        );
+    }
+}
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../protocols");
     let tmp = tempfile::tempdir().expect("tmp");
@@ -366,114 +485,8 @@ fn main() {
                 (*p, dir)
             })
             .collect();
-        for (method, opts) in [
-            ("chosen (no flags)", CalibrateOptions::default()),
-            (
-                "moments",
-                CalibrateOptions {
-                    method: Some(Method::Moments),
-                    symmetric: Some(false),
-                    ..CalibrateOptions::default()
-                },
-            ),
-            (
-                "traction",
-                CalibrateOptions {
-                    method: Some(Method::Traction),
-                    symmetric: Some(false),
-                    ..CalibrateOptions::default()
-                },
-            ),
-            (
-                "scale",
-                CalibrateOptions {
-                    method: Some(Method::Scale),
-                    symmetric: Some(false),
-                    ..CalibrateOptions::default()
-                },
-            ),
-            (
-                "moments, symmetric",
-                CalibrateOptions {
-                    method: Some(Method::Moments),
-                    symmetric: Some(true),
-                    ..CalibrateOptions::default()
-                },
-            ),
-            (
-                "traction, symmetric",
-                CalibrateOptions {
-                    method: Some(Method::Traction),
-                    symmetric: Some(true),
-                    ..CalibrateOptions::default()
-                },
-            ),
-            (
-                "scale, symmetric",
-                CalibrateOptions {
-                    method: Some(Method::Scale),
-                    symmetric: Some(true),
-                    ..CalibrateOptions::default()
-                },
-            ),
-        ] {
-            let sensor: SensorFile = calibrate(&runs, &opts).expect("calibrate");
-            let path = tmp
-                .path()
-                .join(format!("{name}-{}.yaml", method.replace(", ", "-")));
-            sensor.write(&path).expect("write");
-            let held: Vec<String> = sensor
-                .held_out
-                .channels
-                .values()
-                .map(|s| format!("{:.2}", s.pct_range))
-                .collect();
-            let settings = sensor
-                .traction
-                .map(|t| format!(" (cell {} mm, support {})", t.cell_mm, t.support))
-                .unwrap_or_default();
-            println!(
-                "| {name} | {method}{settings} | calibration, held out ({} frames) | yes | {} |  |",
-                sensor.model.samples,
-                held.join(" | ")
-            );
-            let reader = Reader::new(&sensor);
-            for (p, dir) in &tests {
-                let out = tmp.path().join("report");
-                report::report_with_sensor(dir, Some(&out), Some((&sensor, &path)))
-                    .expect("report");
-                let summary: serde_json::Value = serde_json::from_str(
-                    &std::fs::read_to_string(out.join("summary.json")).expect("summary"),
-                )
-                .expect("json");
-                let g = &summary["gelsight_force"];
-                let pct = |c: &str| g[c]["pct_range"].as_f64().unwrap_or(f64::NAN);
-                // The reading alone, tracking done: match once, then each frame.
-                let frames = load_frames(dir).expect("frames");
-                let map = reader
-                    .layout
-                    .match_markers(&frames[0].field.reference_px)
-                    .expect("layout");
-                let mut ms: Vec<f64> = frames
-                    .iter()
-                    .map(|f| {
-                        let started = Instant::now();
-                        let r = reader.read(&f.field, f.contact, &map);
-                        std::hint::black_box(reader.model.predict(&r.features));
-                        started.elapsed().as_secs_f64() * 1e3
-                    })
-                    .collect();
-                ms.sort_by(f64::total_cmp);
-                println!(
-                    "| {name} | {method} | {p} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.3} |",
-                    if cal.contains(p) { "yes" } else { "no" },
-                    pct("fx"),
-                    pct("fy"),
-                    pct("fz"),
-                    pct("tz"),
-                    ms[ms.len() / 2]
-                );
-            }
+        for (method, opts) in methods() {
+            one_method(tmp.path(), name, method, &opts, (&runs, cal, &tests));
         }
     }
 }

@@ -13,7 +13,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use experiments::protocol::load;
+use experiments::load::load;
 use runner::run_virtual_blocking;
 
 type Row = std::collections::BTreeMap<String, String>;

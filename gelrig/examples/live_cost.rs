@@ -14,7 +14,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use experiments::protocol::load;
+use experiments::load::load;
 use rig::ClockMode;
 use runner::{Cancel, Launch, run};
 

@@ -1,5 +1,5 @@
 //! Bench time against equilibrium error for each settle rule (BENCHMARKS.md, "Settle
-//! rules"; README, "Choosing a settle rule"): `box-normal-flat` with its `settle:` replaced by
+//! rules"; docs/reference/protocol.md, "Choosing a settle rule"): `box-normal-flat` with its `settle:` replaced by
 //! each rule, dry runs of seeds 1–3; per step with contact, the quasistatic Fz in
 //! `steps.csv` (the window mean, or F∞ for `adaptive`) against the simulator's equilibrium.
 //! Then the coverage of the adaptive rule's reported uncertainty with a 600 s term added.
@@ -10,7 +10,7 @@
 
 use std::path::Path;
 
-use experiments::protocol::load;
+use experiments::load::load;
 use runner::run_virtual_blocking;
 
 fn column(path: &Path, name: &str) -> Vec<f64> {

@@ -15,7 +15,8 @@
 
 use std::path::{Path, PathBuf};
 
-use experiments::protocol::{load, plant_spec};
+use experiments::load::load;
+use experiments::protocol::plant_spec;
 use rig::ClockMode;
 use runner::{Cancel, Launch, run};
 use simbench::bench::{ServeOptions, serve};

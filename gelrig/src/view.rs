@@ -13,7 +13,7 @@ use sensing::run_data::{ForceRow, FrameRow, RunDirError, StepRow, TactileCsvRow,
 
 /// The board's meta of a run about to start on `clock`.
 pub fn live_meta(
-    loaded: &experiments::protocol::Loaded,
+    loaded: &experiments::load::Loaded,
     plan: &experiments::plan::Plan,
     clock: rig::ClockMode,
 ) -> RunMeta {

@@ -64,6 +64,14 @@ fn flat_punch(cells: usize) -> (f64, f64, f64, f64, Grid) {
 }
 
 fn main() {
+    punch_table();
+    field_table();
+    model_build_table();
+    sphere_table();
+}
+
+/// 1. The flat punch on the layer against the exact semi-analytic κ and a converged field.
+fn punch_table() {
     let exact = mechanics::punch::layer_kappa(1.131, 0.5, 64);
     let (_, ur15_ref, ur05_ref, _, _) = flat_punch(256);
     println!("## Flat punch on the layer, a/h = 1.131, ν = ½ (exact κ = {exact:.5})\n");
@@ -81,7 +89,10 @@ fn main() {
             ur05 - ur05_ref
         );
     }
-    // 2. The field the camera sees: box sensor, 9.5 mm punch, 20 % depth, friction.
+}
+
+/// 2. The field the camera sees: box sensor, 9.5 mm punch, 20 % depth, friction.
+fn field_table() {
     println!(
         "\n## Surface field of the box sensor (9.5 mm punch, 0.84 mm), field grid vs 1024² reference\n"
     );
@@ -174,7 +185,10 @@ fn main() {
             worst.1.hypot(worst.2)
         );
     }
-    // 3. What a dry run pays up front: building the contact model of each thesis case.
+}
+
+/// 3. What a dry run pays up front: building the contact model of each thesis case.
+fn model_build_table() {
     println!("\n## Contact model build per shipped protocol (what each dry run pays once)\n");
     println!(
         "| case | build, ms | tables at the run's depth, ms | first field, ms | force at max depth, N |"
@@ -322,7 +336,10 @@ fn main() {
             );
         }
     }
-    // 4. Sphere on the layer (spec O18).
+}
+
+/// 4. The sphere on the layer (spec O18) against cells across the contact.
+fn sphere_table() {
     println!(
         "\n## Sphere on the layer (R/h = 1.51, ν = ½, paraboloid), P/P_Hertz at d/h = 0.2 (spec: 2.360)\n"
     );

@@ -16,7 +16,7 @@ const QUASISTATIC_S: f64 = 5.0;
 pub(crate) fn reference_model(data: &RunData) -> Result<RefModel, String> {
     let protocol = data.dir.join(rundir::names::PROTOCOL);
     let rig = data.dir.join(rundir::names::RIG);
-    let loaded = experiments::protocol::load(&protocol, Some(&rig)).map_err(|d| {
+    let loaded = experiments::load::load(&protocol, Some(&rig)).map_err(|d| {
         format!(
             "the run's protocol does not load ({})",
             d.first().map(|d| d.to_string()).unwrap_or_default()
@@ -186,6 +186,140 @@ fn sim_onset(data: &RunData, b: &Block) -> Option<u32> {
     })
 }
 
+/// The relaxation of each held step of block `b`.
+fn relaxation_of(data: &RunData, b: &Block) -> Vec<StepRelax> {
+    let mut relaxation = Vec::new();
+    for s in &b.steps {
+        let (t, f, start_s) = step_record(data, b, s);
+        if t.is_empty() {
+            continue;
+        }
+        let window = data.steps[s.row].force_window_s.max(1.0);
+        relaxation.push(StepRelax {
+            step: s.step,
+            kind: b.kind,
+            fit: analyse_step(&t, &f, window, 3),
+            truth: sim_truth(data, b, s.step),
+            t_s: t,
+            f,
+            start_s,
+        });
+    }
+    relaxation
+}
+
+/// Linearity of the loading steps, hysteresis against the unloading ones, and the slip cues
+/// of the force record.
+fn force_curves(data: &RunData, b: &mut Block, curved: bool) {
+    let loading: Vec<&BlockStep> = b.steps.iter().filter(|s| !s.unloading).collect();
+    let x: Vec<f64> = loading.iter().map(|s| s.load).collect();
+    let y: Vec<f64> = loading.iter().map(|s| s.force).collect();
+    if loading.len() >= 3 {
+        // The stiffness is the slope over the linear range (thesis Fig. 4-10: the line
+        // through the first points); the fits over every loading step are kept too.
+        let range = linear_range(&x, &y, 0.05, 0.02);
+        let k = range.as_ref().map_or(x.len(), |r| r.points.max(2));
+        if let (Some(with_intercept), Some(through_origin), Some(all)) = (
+            fit_line(&x[..k], &y[..k], true),
+            fit_line(&x[..k], &y[..k], false),
+            fit_line(&x, &y, true),
+        ) {
+            b.linearity = Some(Linearity {
+                with_intercept,
+                through_origin,
+                all,
+                range,
+                power_law: (curved && b.kind == Kind::Normal)
+                    .then(|| fit_power_law(&x, &y))
+                    .flatten(),
+                displacement_vs_force: None,
+            });
+        }
+    }
+    let unloading: Vec<(f64, f64)> = b
+        .steps
+        .iter()
+        .filter(|s| s.unloading)
+        .map(|s| (s.load, s.force))
+        .collect();
+    if unloading.len() >= 2 {
+        let load: Vec<(f64, f64)> = x.iter().copied().zip(y.iter().copied()).collect();
+        b.hysteresis = hysteresis(&load, &unloading);
+    }
+    if b.kind != Kind::Normal
+        && let Some(report) = slip::classify(&slip_block(&b.steps), slip_thresholds(b.kind))
+    {
+        b.slip = Some(Slip {
+            report,
+            mu: None,
+            mu_note: None,
+            sim_onset_step: sim_onset(data, b),
+        });
+    }
+}
+
+/// The markers' mean displacement against force: its line and its hysteresis.
+fn displacement_curves(b: &mut Block) {
+    if b.displacement_px.is_empty() {
+        return;
+    }
+    if let Some(lin) = b.linearity.as_mut() {
+        let (f, d): (Vec<f64>, Vec<f64>) = b
+            .steps
+            .iter()
+            .zip(&b.displacement_px)
+            .filter(|(s, d)| !s.unloading && d.is_some())
+            .map(|(s, d)| (s.force, d.map_or(f64::NAN, |d| d.0)))
+            .unzip();
+        lin.displacement_vs_force = fit_line(&f, &d, true);
+    }
+    let pts = |unloading: bool| -> Vec<(f64, f64)> {
+        b.steps
+            .iter()
+            .zip(&b.displacement_px)
+            .filter(|(s, _)| s.unloading == unloading)
+            .filter_map(|(s, d)| d.map(|d| (s.force, d.0)))
+            .collect()
+    };
+    let (up, down) = (pts(false), pts(true));
+    if down.len() >= 2 {
+        b.displacement_hysteresis = hysteresis(&up, &down);
+    }
+}
+
+/// μ from the slip onset: the force ratio of a shear, or of a flat circular punch's twist.
+fn friction_from_slip(b: &mut Block, model: Option<&RefModel>) {
+    let Some(slip) = b.slip.as_mut() else { return };
+    match (b.kind, slip.report.ratio_at_slip) {
+        (_, None) => slip.mu_note = Some("no slip within the block".into()),
+        (Kind::Shear, Some(r)) => slip.mu = Some(r),
+        (Kind::Rotation, Some(r)) => {
+            // Full torsional slip of a flat circular punch (pressure ∝ 1/√(a²−r²)):
+            // T = μ·P·a·π/4 (integrate μ p r over the contact).
+            match model.and_then(|m| indenter_radius_mm(&m.spec.contact.indenter)) {
+                Some(a) => slip.mu = Some(r / (a * std::f64::consts::FRAC_PI_4)),
+                None => slip.mu_note = Some("torsional μ needs a flat circular punch".into()),
+            }
+        }
+        (Kind::Normal, _) => {}
+    }
+}
+
+/// The slope of the simulated bench's true force against load over the linear range of the
+/// longest block.
+fn sim_slope(data: &RunData, blocks: &[Block]) -> Option<f64> {
+    let b = blocks.iter().max_by_key(|b| b.steps.len())?;
+    let (x, y): (Vec<f64>, Vec<f64>) = b
+        .steps
+        .iter()
+        .filter(|s| !s.unloading)
+        .filter_map(|s| sim_truth(data, b, s.step).map(|t| (s.load, t)))
+        .unzip();
+    let n = x.len();
+    let k = linear_range(&x, &y, 0.05, 0.02).map_or(n, |r| r.points);
+    fit_line(&x[..k.min(n)], &y[..k.min(n)], true).map(|l| l.slope)
+}
+
 /// Runs every analysis that applies.
 pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report {
     let mut blocks = blocks(data);
@@ -196,68 +330,8 @@ pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report
         .is_some_and(|m| matches!(m.spec.contact.indenter, Indenter::Sphere { .. }));
     let mut relaxation = Vec::new();
     for b in &mut blocks {
-        // Relaxation per step.
-        for s in &b.steps {
-            let (t, f, start_s) = step_record(data, b, s);
-            if t.is_empty() {
-                continue;
-            }
-            let window = data.steps[s.row].force_window_s.max(1.0);
-            relaxation.push(StepRelax {
-                step: s.step,
-                kind: b.kind,
-                fit: analyse_step(&t, &f, window, 3),
-                truth: sim_truth(data, b, s.step),
-                t_s: t,
-                f,
-                start_s,
-            });
-        }
-        let loading: Vec<&BlockStep> = b.steps.iter().filter(|s| !s.unloading).collect();
-        let x: Vec<f64> = loading.iter().map(|s| s.load).collect();
-        let y: Vec<f64> = loading.iter().map(|s| s.force).collect();
-        if loading.len() >= 3 {
-            // The stiffness is the slope over the linear range (thesis Fig. 4-10: the line
-            // through the first points); the fits over every loading step are kept too.
-            let range = linear_range(&x, &y, 0.05, 0.02);
-            let k = range.as_ref().map_or(x.len(), |r| r.points.max(2));
-            if let (Some(with_intercept), Some(through_origin), Some(all)) = (
-                fit_line(&x[..k], &y[..k], true),
-                fit_line(&x[..k], &y[..k], false),
-                fit_line(&x, &y, true),
-            ) {
-                b.linearity = Some(Linearity {
-                    with_intercept,
-                    through_origin,
-                    all,
-                    range,
-                    power_law: (curved && b.kind == Kind::Normal)
-                        .then(|| fit_power_law(&x, &y))
-                        .flatten(),
-                    displacement_vs_force: None,
-                });
-            }
-        }
-        let unloading: Vec<(f64, f64)> = b
-            .steps
-            .iter()
-            .filter(|s| s.unloading)
-            .map(|s| (s.load, s.force))
-            .collect();
-        if unloading.len() >= 2 {
-            let load: Vec<(f64, f64)> = x.iter().copied().zip(y.iter().copied()).collect();
-            b.hysteresis = hysteresis(&load, &unloading);
-        }
-        if b.kind != Kind::Normal
-            && let Some(report) = slip::classify(&slip_block(&b.steps), slip_thresholds(b.kind))
-        {
-            b.slip = Some(Slip {
-                report,
-                mu: None,
-                mu_note: None,
-                sim_onset_step: sim_onset(data, b),
-            });
-        }
+        relaxation.extend(relaxation_of(data, b));
+        force_curves(data, b, curved);
     }
     // Field analyses need the depth of the preload for shear/torsion blocks.
     for b in &mut blocks {
@@ -268,52 +342,8 @@ pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report
             .and_then(|r| r.position)
             .unwrap_or(0.1);
         let note = analyse_fields(data, model.as_ref(), b, depth);
-        if let (Some(lin), false) = (b.linearity.as_mut(), b.displacement_px.is_empty()) {
-            let (f, d): (Vec<f64>, Vec<f64>) = b
-                .steps
-                .iter()
-                .zip(&b.displacement_px)
-                .filter(|(s, d)| !s.unloading && d.is_some())
-                .map(|(s, d)| (s.force, d.map_or(f64::NAN, |d| d.0)))
-                .unzip();
-            lin.displacement_vs_force = fit_line(&f, &d, true);
-        }
-        if !b.displacement_px.is_empty() {
-            let pts = |unloading: bool| -> Vec<(f64, f64)> {
-                b.steps
-                    .iter()
-                    .zip(&b.displacement_px)
-                    .filter(|(s, _)| s.unloading == unloading)
-                    .filter_map(|(s, d)| d.map(|d| (s.force, d.0)))
-                    .collect()
-            };
-            let (up, down) = (pts(false), pts(true));
-            if down.len() >= 2 {
-                b.displacement_hysteresis = hysteresis(&up, &down);
-            }
-        }
-        // μ from the slip onset.
-        if let Some(slip) = b.slip.as_mut() {
-            let ratio = slip.report.ratio_at_slip;
-            match (b.kind, ratio) {
-                (_, None) => slip.mu_note = Some("no slip within the block".into()),
-                (Kind::Shear, Some(r)) => slip.mu = Some(r),
-                (Kind::Rotation, Some(r)) => {
-                    // Full torsional slip of a flat circular punch (pressure ∝ 1/√(a²−r²)):
-                    // T = μ·P·a·π/4 (integrate μ p r over the contact).
-                    match model
-                        .as_ref()
-                        .and_then(|m| indenter_radius_mm(&m.spec.contact.indenter))
-                    {
-                        Some(a) => slip.mu = Some(r / (a * std::f64::consts::FRAC_PI_4)),
-                        None => {
-                            slip.mu_note = Some("torsional μ needs a flat circular punch".into())
-                        }
-                    }
-                }
-                (Kind::Normal, _) => {}
-            }
-        }
+        displacement_curves(b);
+        friction_from_slip(b, model.as_ref());
         if let Some(n) = note
             && let Some(slip) = b.slip.as_mut()
         {
@@ -345,17 +375,7 @@ pub(crate) fn analyse(data: &RunData, model: Result<RefModel, String>) -> Report
         })
         .collect();
     let settle = super::settle_study::settle_curve(&views);
-    let sim_slope = blocks.iter().max_by_key(|b| b.steps.len()).and_then(|b| {
-        let (x, y): (Vec<f64>, Vec<f64>) = b
-            .steps
-            .iter()
-            .filter(|s| !s.unloading)
-            .filter_map(|s| sim_truth(data, b, s.step).map(|t| (s.load, t)))
-            .unzip();
-        let n = x.len();
-        let k = linear_range(&x, &y, 0.05, 0.02).map_or(n, |r| r.points);
-        fit_line(&x[..k.min(n)], &y[..k.min(n)], true).map(|l| l.slope)
-    });
+    let sim_slope = sim_slope(data, &blocks);
     Report {
         blocks,
         relaxation,

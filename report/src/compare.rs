@@ -72,24 +72,15 @@ const METRICS: [Metric; 8] = [
     },
 ];
 
-/// Reports every run of `runs` and compares them into `out`.
-pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
-    let mut reports = Vec::new();
-    for dir in runs {
-        let data = read_run(dir)?;
-        let model = analyse::reference_model(&data);
-        let report = analyse::analyse(&data, model);
-        let written = super::write::write(&data, &report, &dir.join("report"), None)?;
-        let main = report.blocks.iter().max_by_key(|b| b.steps.len()).cloned();
-        reports.push((dir.clone(), data.protocol_name.clone(), written, main));
-    }
-    std::fs::create_dir_all(out).map_err(|e| super::out::werr(out)(e.to_string()))?;
-    let mut o = Out {
-        dir: out.to_path_buf(),
-        sections: Vec::new(),
-    };
-    let name = |k: usize| format!("run {}", k + 1);
-    // The runs.
+/// One run compared: its folder, protocol name, written report and main block.
+type Reported = (PathBuf, String, Written, Option<Block>);
+
+fn run_name(k: usize) -> String {
+    format!("run {}", k + 1)
+}
+
+/// The table of the runs compared.
+fn runs_table(reports: &[Reported]) -> String {
     let mut text =
         String::from("| | run | protocol | status | rig | seed |\n|---|---|---|---|---|---|\n");
     for (k, (dir, protocol, w, _)) in reports.iter().enumerate() {
@@ -97,7 +88,7 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
         let _ = writeln!(
             text,
             "| {} | `{}` | {} | {} | {} | {} |",
-            name(k),
+            run_name(k),
             dir.display(),
             esc(protocol),
             run["status"].as_str().unwrap_or("—"),
@@ -109,18 +100,18 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
             run["seed"]
         );
     }
-    o.sections.push(Section {
-        title: "Runs compared".into(),
-        text,
-        plots: Vec::new(),
-    });
-    // The numbers, and each run's difference from the first.
+    text
+}
+
+/// The headline numbers of every run and each run's difference from the first, as a table
+/// and as JSON.
+fn metrics_table(reports: &[Reported]) -> (String, serde_json::Map<String, Value>) {
     let mut text = String::from("| quantity |");
     for k in 0..reports.len() {
-        let _ = write!(text, " {} |", name(k));
+        let _ = write!(text, " {} |", run_name(k));
     }
     for k in 1..reports.len() {
-        let _ = write!(text, " {} − run 1 (%) |", name(k));
+        let _ = write!(text, " {} − run 1 (%) |", run_name(k));
     }
     text.push('\n');
     text.push_str(&"|---".repeat(2 * reports.len()));
@@ -154,9 +145,12 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
                    "difference_pct_from_first": diffs.iter().map(|v| v.map(num)).collect::<Vec<_>>()}),
         );
     }
-    // Force against load of each run's main block, loading and unloading.
+    (text, metrics_json)
+}
+
+/// Force against load of each run's main block, loading and unloading.
+fn force_load_series(kinds: &[Option<&Block>]) -> Vec<Series> {
     let mut series = Vec::new();
-    let kinds: Vec<Option<&Block>> = reports.iter().map(|r| r.3.as_ref()).collect();
     for (k, b) in kinds.iter().enumerate() {
         let Some(b) = b else { continue };
         let pts = |unloading: bool| -> Vec<(f64, f64)> {
@@ -167,7 +161,7 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
                 .collect()
         };
         series.push(Series {
-            name: format!("{} loading", name(k)),
+            name: format!("{} loading", run_name(k)),
             points: pts(false),
             mark: Mark::LinePoints,
             colour: k,
@@ -175,13 +169,40 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
         let unload = pts(true);
         if !unload.is_empty() {
             series.push(Series {
-                name: format!("{} unloading", name(k)),
+                name: format!("{} unloading", run_name(k)),
                 points: unload,
                 mark: Mark::Points,
                 colour: k,
             });
         }
     }
+    series
+}
+
+/// Reports every run of `runs` and compares them into `out`.
+pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
+    let mut reports: Vec<Reported> = Vec::new();
+    for dir in runs {
+        let data = read_run(dir)?;
+        let model = analyse::reference_model(&data);
+        let report = analyse::analyse(&data, model);
+        let written = super::write::write(&data, &report, &dir.join("report"), None)?;
+        let main = report.blocks.iter().max_by_key(|b| b.steps.len()).cloned();
+        reports.push((dir.clone(), data.protocol_name.clone(), written, main));
+    }
+    std::fs::create_dir_all(out).map_err(|e| super::out::werr(out)(e.to_string()))?;
+    let mut o = Out {
+        dir: out.to_path_buf(),
+        sections: Vec::new(),
+    };
+    o.sections.push(Section {
+        title: "Runs compared".into(),
+        text: runs_table(&reports),
+        plots: Vec::new(),
+    });
+    let (mut text, metrics_json) = metrics_table(&reports);
+    let kinds: Vec<Option<&Block>> = reports.iter().map(|r| r.3.as_ref()).collect();
+    let series = force_load_series(&kinds);
     let mut plots = Vec::new();
     let first = kinds.iter().flatten().next();
     let same_kind = kinds
@@ -227,7 +248,7 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> Result<Written, ReportError> {
         what: reports
             .iter()
             .enumerate()
-            .map(|(k, r)| format!("{}: `{}`", name(k), r.0.display()))
+            .map(|(k, r)| format!("{}: `{}`", run_name(k), r.0.display()))
             .collect::<Vec<_>>()
             .join("; "),
     };

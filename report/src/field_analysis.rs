@@ -75,18 +75,9 @@ pub(super) fn indenter_radius_mm(ind: &Indenter) -> Option<f64> {
     }
 }
 
-pub(super) fn analyse_fields(
-    data: &RunData,
-    model: Option<&RefModel>,
-    b: &mut Block,
-    relax_depth: f64,
-) -> Option<String> {
-    if data.markers.is_empty() {
-        return None;
-    }
-    let fields: Vec<Option<MarkerField>> =
-        b.steps.iter().map(|s| step_field(data, s.step)).collect();
-    b.displacement_px = fields
+/// The mean and largest marker displacement of each step's field, px.
+fn displacement_px(fields: &[Option<MarkerField>]) -> Vec<Option<(f64, f64)>> {
+    fields
         .iter()
         .map(|f| {
             let f = f.as_ref()?;
@@ -101,17 +92,14 @@ pub(super) fn analyse_fields(
                 )
             })
         })
-        .collect();
-    let model = match model {
-        Some(m) => m,
-        None => {
-            return Some("no reference model: force from field and field slip cues skipped".into());
-        }
-    };
-    let g = geometry(data, model, b, &fields)?;
-    // One reference field per block, as the thesis (§4.3): the field of a fixed load is
-    // scaled to every step, and the scale measures the load. Normal blocks use the median
-    // depth of the block; shear and torsion blocks the preload depth.
+        .collect()
+}
+
+/// The deepest depth of the block and the depth of its one reference field: as the thesis
+/// (§4.3), the field of a fixed load is scaled to every step, and the scale measures the
+/// load. Normal blocks use the median depth of the block; shear and torsion blocks the
+/// preload depth.
+fn reference_depths(b: &Block, relax_depth: f64) -> (f64, f64) {
     let max_depth = b
         .steps
         .iter()
@@ -131,15 +119,176 @@ pub(super) fn analyse_fields(
         }
         _ => relax_depth,
     };
-    let depth_of = |s: &BlockStep| match b.kind {
-        Kind::Normal => s.load.max(1e-3),
-        _ => relax_depth,
+    (max_depth, ref_depth)
+}
+
+/// What one step's field says: the scale of the reference field, the slip cues, and the
+/// profile drawn in the report.
+struct StepCues {
+    scale: f64,
+    centre_over_edge: f64,
+    contact_motion: f64,
+    profile: Option<Vec<(f64, f64)>>,
+}
+
+impl Default for StepCues {
+    fn default() -> Self {
+        Self {
+            scale: f64::NAN,
+            centre_over_edge: f64::NAN,
+            contact_motion: f64::NAN,
+            profile: None,
+        }
+    }
+}
+
+fn at_rest(depth_mm: f64, shear_n: f64) -> State {
+    State {
+        depth_mm,
+        shear_n,
+        torque_nmm: 0.0,
+    }
+}
+
+/// A normal step: the reference field at `ref_depth` scaled to the radial field.
+fn normal_step(cm: &mut ContactModel, g: &Geometry, f: &MarkerField, ref_depth: f64) -> StepCues {
+    let mut cues = StepCues::default();
+    let Some(rf) = cm.field(at_rest(ref_depth, 0.0)) else {
+        return cues;
     };
-    let needs_shear = b.kind == Kind::Shear;
+    let a = cm.contact_radius_mm(ref_depth) / g.mm_per_px;
+    let reference =
+        field_force::reference_at_markers(&rf, &f.reference_px, g.centre_px, g.mm_per_px, 0.0);
+    if let Some(fit) = field_force::fit_scale(f, &reference, g.centre_px, a, Component::Radial) {
+        cues.scale = fit.scale;
+    }
+    let prof = decompose::radial_profile(f, g.centre_px, 0.5 * g.spacing_px);
+    let mm = |p: &decompose::ProfileBin| (p.at_px * g.mm_per_px, p.mean_px * g.mm_per_px);
+    cues.profile = Some(prof.iter().map(mm).collect());
+    cues
+}
+
+/// A shear step: the field less the preload's, scaled to the model's field of a unit shear;
+/// the centre-over-edge ratio and the contact's motion along the shear.
+fn shear_step(
+    cm: &mut ContactModel,
+    g: &Geometry,
+    f: &MarkerField,
+    pre: &MarkerField,
+    depth: f64,
+) -> StepCues {
+    let mut cues = StepCues::default();
+    let a = cm.contact_radius_mm(depth) / g.mm_per_px;
+    let pure = decompose::subtract(f, pre);
+    // Image direction of the shear from the pure field itself.
+    let half = 0.5 * g.spacing_px;
+    let Some(sh) = decompose::shear(&pure, Some(g.centre_px), half, half) else {
+        return cues;
+    };
+    let dir = [sh.direction_rad.cos(), sh.direction_rad.sin()];
+    let (Some(f1), Some(f0)) = (cm.field(at_rest(depth, 1.0)), cm.field(at_rest(depth, 0.0)))
+    else {
+        return cues;
+    };
+    let unit = mechanics::response::Field {
+        grid: f1.grid,
+        ux: f1.ux.iter().zip(&f0.ux).map(|(a, b)| a - b).collect(),
+        uy: f1.uy.iter().zip(&f0.uy).map(|(a, b)| a - b).collect(),
+        uz: f1.uz.iter().zip(&f0.uz).map(|(a, b)| a - b).collect(),
+    };
+    let reference = field_force::reference_at_markers(
+        &unit,
+        &pure.reference_px,
+        g.centre_px,
+        g.mm_per_px,
+        sh.direction_rad,
+    );
+    let along = Component::Along(dir);
+    if let Some(fit) = field_force::fit_scale(&pure, &reference, g.centre_px, a, along) {
+        cues.scale = fit.scale;
+    }
+    cues.centre_over_edge =
+        decompose::centre_over_edge(&pure, g.centre_px, dir, a, 0.6 * g.spacing_px)
+            .unwrap_or(f64::NAN);
+    cues.contact_motion = decompose::mean_along_within(&pure, g.centre_px, dir, 0.5 * a)
+        .map_or(f64::NAN, |u| u * g.mm_per_px);
+    let mm = |p: &decompose::ProfileBin| (p.at_px * g.mm_per_px, p.mean_px * g.mm_per_px);
+    cues.profile = Some(sh.central_line.iter().map(mm).collect());
+    cues
+}
+
+/// A twist: the rotation inside 0.5a over that of the annulus 0.5a–a, and the whole
+/// contact's rotation (degrees, in the block's sense).
+fn rotation_step(g: &Geometry, f: &MarkerField, pre: &MarkerField, a: f64, sign: f64) -> StepCues {
+    let mut cues = StepCues::default();
+    let pure = decompose::subtract(f, pre);
+    let inner = decompose::rotation(&pure, Some(g.centre_px), 0.5 * a);
+    let whole = decompose::rotation(&pure, Some(g.centre_px), a);
+    let outer = whole.as_ref().and(inner.as_ref()).and_then(|_| {
+        // The annulus 0.5a–a: markers outside 0.5a only.
+        let mut ring = pure.clone();
+        for (i, m) in ring.measured.iter_mut().enumerate() {
+            let p = pure.reference_px[i];
+            if (p[0] - g.centre_px[0]).hypot(p[1] - g.centre_px[1]) < 0.5 * a {
+                *m = false;
+            }
+        }
+        decompose::rotation(&ring, Some(g.centre_px), a)
+    });
+    if let (Some(i), Some(o)) = (&inner, &outer)
+        && o.angle_rad.abs() > 1e-6
+    {
+        cues.centre_over_edge = i.angle_rad / o.angle_rad;
+    }
+    if let Some(w) = whole {
+        cues.contact_motion = sign * w.angle_rad.to_degrees();
+    }
+    cues
+}
+
+/// Force from field: the scales calibrated on every other step and predicted on the rest.
+fn field_force(model: &RefModel, b: &mut Block, scales: Vec<f64>) {
+    if b.kind == Kind::Rotation {
+        return;
+    }
+    let forces: Vec<f64> = b.steps.iter().map(|s| s.force).collect();
+    let calibrate: Vec<bool> = (0..b.steps.len()).map(|i| i % 2 == 0).collect();
+    let curved = !matches!(
+        model.spec.contact.indenter,
+        Indenter::FlatCircle { .. } | Indenter::FlatEllipse { .. } | Indenter::FlatRectangle { .. }
+    );
+    let map = if curved && b.kind == Kind::Normal {
+        field_force::Map::Piecewise
+    } else {
+        field_force::Map::Linear
+    };
+    if let Some(prediction) = field_force::calibrate_and_predict(&scales, &forces, &calibrate, map)
+    {
+        b.field_force = Some(FieldForce { scales, prediction });
+    }
+}
+
+pub(super) fn analyse_fields(
+    data: &RunData,
+    model: Option<&RefModel>,
+    b: &mut Block,
+    relax_depth: f64,
+) -> Option<String> {
+    if data.markers.is_empty() {
+        return None;
+    }
+    let fields: Vec<Option<MarkerField>> =
+        b.steps.iter().map(|s| step_field(data, s.step)).collect();
+    b.displacement_px = displacement_px(&fields);
+    let Some(model) = model else {
+        return Some("no reference model: force from field and field slip cues skipped".into());
+    };
+    let g = geometry(data, model, b, &fields)?;
+    let (max_depth, ref_depth) = reference_depths(b, relax_depth);
     let mut cm = match ContactModel::build(ModelSpec {
         contact: model.spec.contact.clone(),
         max_depth_mm: max_depth * 1.05,
-        shear: needs_shear,
+        shear: b.kind == Kind::Shear,
         twist: false,
         field_view_mm: Some((model.spec.view_width_mm, model.spec.view_height_mm)),
         pressing_friction: false,
@@ -148,158 +297,35 @@ pub(super) fn analyse_fields(
         Ok(m) => m,
         Err(e) => return Some(format!("reference model failed: {e}")),
     };
-    let a_px = |depth: f64, cm: &ContactModel| cm.contact_radius_mm(depth) / g.mm_per_px;
-    let mut scales = vec![f64::NAN; b.steps.len()];
-    let mut centre_over_edge = vec![f64::NAN; b.steps.len()];
-    let mut contact_motion = vec![f64::NAN; b.steps.len()];
+    let n = b.steps.len();
+    let (mut scales, mut centre_over_edge, mut contact_motion) =
+        (vec![f64::NAN; n], vec![f64::NAN; n], vec![f64::NAN; n]);
     let preload = b.before.and_then(|r| step_field(data, data.steps[r].step));
     for (k, s) in b.steps.iter().enumerate() {
         let Some(f) = fields[k].as_ref() else {
             continue;
         };
-        let depth = depth_of(s);
-        let a = a_px(depth, &cm);
-        match b.kind {
-            Kind::Normal => {
-                let Some(rf) = cm.field(State {
-                    depth_mm: ref_depth,
-                    shear_n: 0.0,
-                    torque_nmm: 0.0,
-                }) else {
-                    continue;
-                };
-                let a = a_px(ref_depth, &cm);
-                let reference = field_force::reference_at_markers(
-                    &rf,
-                    &f.reference_px,
-                    g.centre_px,
-                    g.mm_per_px,
-                    0.0,
-                );
-                if let Some(fit) =
-                    field_force::fit_scale(f, &reference, g.centre_px, a, Component::Radial)
-                {
-                    scales[k] = fit.scale;
-                }
-                let prof = decompose::radial_profile(f, g.centre_px, 0.5 * g.spacing_px);
-                b.profiles.push((
-                    s.step,
-                    prof.iter()
-                        .map(|p| (p.at_px * g.mm_per_px, p.mean_px * g.mm_per_px))
-                        .collect(),
-                ));
+        let depth = match b.kind {
+            Kind::Normal => s.load.max(1e-3),
+            _ => relax_depth,
+        };
+        let cues = match (b.kind, preload.as_ref()) {
+            (Kind::Normal, _) => normal_step(&mut cm, &g, f, ref_depth),
+            (Kind::Shear, Some(pre)) => shear_step(&mut cm, &g, f, pre, depth),
+            (Kind::Rotation, Some(pre)) => {
+                let a = cm.contact_radius_mm(depth) / g.mm_per_px;
+                rotation_step(&g, f, pre, a, b.sign)
             }
-            Kind::Shear => {
-                let Some(pre) = preload.as_ref() else {
-                    continue;
-                };
-                let pure = decompose::subtract(f, pre);
-                // Image direction of the shear from the pure field itself.
-                let Some(sh) = decompose::shear(
-                    &pure,
-                    Some(g.centre_px),
-                    0.5 * g.spacing_px,
-                    0.5 * g.spacing_px,
-                ) else {
-                    continue;
-                };
-                let dir = [sh.direction_rad.cos(), sh.direction_rad.sin()];
-                let (Some(f1), Some(f0)) = (
-                    cm.field(State {
-                        depth_mm: depth,
-                        shear_n: 1.0,
-                        torque_nmm: 0.0,
-                    }),
-                    cm.field(State {
-                        depth_mm: depth,
-                        shear_n: 0.0,
-                        torque_nmm: 0.0,
-                    }),
-                ) else {
-                    continue;
-                };
-                let unit = mechanics::response::Field {
-                    grid: f1.grid,
-                    ux: f1.ux.iter().zip(&f0.ux).map(|(a, b)| a - b).collect(),
-                    uy: f1.uy.iter().zip(&f0.uy).map(|(a, b)| a - b).collect(),
-                    uz: f1.uz.iter().zip(&f0.uz).map(|(a, b)| a - b).collect(),
-                };
-                let reference = field_force::reference_at_markers(
-                    &unit,
-                    &pure.reference_px,
-                    g.centre_px,
-                    g.mm_per_px,
-                    sh.direction_rad,
-                );
-                if let Some(fit) =
-                    field_force::fit_scale(&pure, &reference, g.centre_px, a, Component::Along(dir))
-                {
-                    scales[k] = fit.scale;
-                }
-                centre_over_edge[k] =
-                    decompose::centre_over_edge(&pure, g.centre_px, dir, a, 0.6 * g.spacing_px)
-                        .unwrap_or(f64::NAN);
-                contact_motion[k] = decompose::mean_along_within(&pure, g.centre_px, dir, 0.5 * a)
-                    .map_or(f64::NAN, |u| u * g.mm_per_px);
-                b.profiles.push((
-                    s.step,
-                    sh.central_line
-                        .iter()
-                        .map(|p| (p.at_px * g.mm_per_px, p.mean_px * g.mm_per_px))
-                        .collect(),
-                ));
-            }
-            Kind::Rotation => {
-                let Some(pre) = preload.as_ref() else {
-                    continue;
-                };
-                let pure = decompose::subtract(f, pre);
-                let inner = decompose::rotation(&pure, Some(g.centre_px), 0.5 * a);
-                let whole = decompose::rotation(&pure, Some(g.centre_px), a);
-                let outer = whole.as_ref().and(inner.as_ref()).and_then(|_| {
-                    // The annulus 0.5a–a: markers outside 0.5a only.
-                    let mut ring = pure.clone();
-                    for (i, m) in ring.measured.iter_mut().enumerate() {
-                        let p = pure.reference_px[i];
-                        if (p[0] - g.centre_px[0]).hypot(p[1] - g.centre_px[1]) < 0.5 * a {
-                            *m = false;
-                        }
-                    }
-                    decompose::rotation(&ring, Some(g.centre_px), a)
-                });
-                if let (Some(i), Some(o)) = (&inner, &outer)
-                    && o.angle_rad.abs() > 1e-6
-                {
-                    centre_over_edge[k] = i.angle_rad / o.angle_rad;
-                }
-                if let Some(w) = whole {
-                    contact_motion[k] = b.sign * w.angle_rad.to_degrees();
-                }
-            }
+            (_, None) => continue,
+        };
+        scales[k] = cues.scale;
+        centre_over_edge[k] = cues.centre_over_edge;
+        contact_motion[k] = cues.contact_motion;
+        if let Some(profile) = cues.profile {
+            b.profiles.push((s.step, profile));
         }
     }
-    if b.kind != Kind::Rotation {
-        let forces: Vec<f64> = b.steps.iter().map(|s| s.force).collect();
-        let calibrate: Vec<bool> = (0..b.steps.len()).map(|i| i % 2 == 0).collect();
-        let curved = !matches!(
-            model.spec.contact.indenter,
-            Indenter::FlatCircle { .. }
-                | Indenter::FlatEllipse { .. }
-                | Indenter::FlatRectangle { .. }
-        );
-        if let Some(prediction) = field_force::calibrate_and_predict(
-            &scales,
-            &forces,
-            &calibrate,
-            if curved && b.kind == Kind::Normal {
-                field_force::Map::Piecewise
-            } else {
-                field_force::Map::Linear
-            },
-        ) {
-            b.field_force = Some(FieldForce { scales, prediction });
-        }
-    }
+    field_force(model, b, scales);
     if b.kind != Kind::Normal
         && let Some(slip) = b.slip.as_mut()
     {

@@ -8,6 +8,7 @@
 //! no field sections, a run that never unloads no hysteresis, a normal-only run no slip.
 
 pub(crate) mod analyse;
+mod block_sections;
 mod camera_timing;
 mod compare;
 mod contact;

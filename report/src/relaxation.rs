@@ -247,7 +247,7 @@ fn settle(
             text,
             "\nThe same records replayed through the other settle rules (each stopped at the \
              record's end at the latest; the value it would have recorded — the window mean, F∞ \
-             for the adaptive rule — against {}; medians over steps; README \"Choosing a settle \
+             for the adaptive rule — against {}; medians over steps; docs/reference/protocol.md, \"Choosing a settle \
              rule\"):\n\n| rule | settle time (s) | error | settled before the record's end |\n|---|---|---|---|",
             if sc.median_abs_vs_truth.is_some() {
                 "the simulator's equilibrium"

@@ -3,7 +3,7 @@
 //! coming against when the force sensor (and, on a dry run, the simulator) saw the can go,
 //! and how each trial ended.
 //!
-//! Definitions (README, "Grasp trials"):
+//! Definitions (docs/explanation/grasp.md):
 //! - a trial is the rows of one `trial` number; its *carrying* part runs from the end of its
 //!   first step that raises the lift axis to the start of the next lift move (lowering);
 //! - squeeze: the window-mean Fz of the lift step; lift load: |Fy| of the first hold (or the

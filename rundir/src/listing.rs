@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::write::{Status, is_locked, read_manifest};
+use crate::manifest::{Status, is_locked, read_manifest};
 
 /// What `gelrig runs` shows for one run.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,7 +38,7 @@ pub fn effective_status(dir: &Path, status: Status) -> &'static str {
 
 /// Wall time the run spent running, s: from start to end, less the time between a
 /// segment's end and the resume that followed it (`None` while running or when unknown).
-fn run_time_s(m: &crate::write::Manifest) -> Option<f64> {
+fn run_time_s(m: &crate::manifest::Manifest) -> Option<f64> {
     let at = |s: &str| s.parse::<jiff::Timestamp>().ok();
     let span = |start: &str, end: &str| -> Option<f64> {
         Some((at(end)?.as_nanosecond() - at(start)?.as_nanosecond()) as f64 / 1e9)
@@ -124,7 +124,7 @@ pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::write::{Manifest, Segment};
+    use crate::manifest::{Manifest, Segment};
 
     #[test]
     fn a_resumed_runs_duration_leaves_out_the_time_it_was_down() {

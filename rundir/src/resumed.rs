@@ -12,7 +12,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::write::Manifest;
+use crate::manifest::Manifest;
 
 /// The segments of a run and, per step, the segment its kept rows come from.
 #[derive(Debug, Clone, Default)]
@@ -102,7 +102,7 @@ mod tests {
         let mut m: Manifest = serde_yaml::from_str(text).expect("a minimal manifest");
         m.resumed = starts
             .iter()
-            .map(|&t| crate::write::Segment {
+            .map(|&t| crate::manifest::Segment {
                 started_utc: String::new(),
                 t_start_ns: t,
                 from_step: 0,

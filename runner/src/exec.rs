@@ -10,9 +10,48 @@ use simbench::Rig;
 use super::watchdog::{Monitor, TripKind};
 use super::{Cancel, Stop, trip_record};
 use crate::progress::Progress;
-use experiments::protocol::Loaded;
+use experiments::load::Loaded;
 use experiments::protocol::compile::{Action, ActionKind, StreamRates};
 use rundir::write::{Recorder, Status};
+
+/// The scopes of stream rates the plan is inside, and the schedules they give.
+#[derive(Default)]
+pub(super) struct Streams {
+    /// The rates of each open scope, outermost first.
+    pub(super) scopes: Vec<StreamRates>,
+    /// The rates in force: the scopes overlaid.
+    pub(super) active: StreamRates,
+    /// When the axes are next recorded, ns; `None` without an axes stream.
+    pub(super) next_axes_ns: Option<u64>,
+    /// When the next stream frame is due, ns; `None` without a frame stream (or camera).
+    pub(super) next_frame_ns: Option<u64>,
+}
+
+/// The watchdog's readings as the plan keeps them.
+#[derive(Default)]
+pub(super) struct Readings {
+    /// Recent tared samples (t, wrench, status), kept for settle and capture windows. With
+    /// a force stream on, only the samples written to force.csv, so the quasistatic values
+    /// in steps.csv can be recomputed from the run directory.
+    pub(super) window: VecDeque<(u64, Wrench, u32)>,
+    /// The newest tared sample, recorded or not (contact detection uses every reading).
+    pub(super) latest: Option<(u64, Wrench)>,
+    /// The time of the newest sample the plan had before `latest`'s batch, ns: with it, how
+    /// late the plan can have noticed a threshold crossed (a scaled clock's loop latency, a
+    /// slow reader).
+    pub(super) previous_latest_ns: Option<u64>,
+    /// How far back `window` must reach, ns (at least 2 s are kept).
+    pub(super) keep_ns: u64,
+}
+
+/// A move that stops on a tactile condition.
+#[derive(Default)]
+pub(super) struct SlipStop {
+    /// The running move stops when the tactile state reaches this.
+    pub(super) stop_at: Option<analysis::tactile::SlipState>,
+    /// The tactile stop was reached during the current move.
+    pub(super) hit: bool,
+}
 
 /// The plan task.
 pub(super) struct Exec<'a> {
@@ -32,23 +71,12 @@ pub(super) struct Exec<'a> {
     pub(super) tare: Wrench,
     pub(super) origin: BTreeMap<AxisRole, f64>,
     pub(super) targets: BTreeMap<AxisRole, f64>,
-    pub(super) streams: Vec<StreamRates>,
-    pub(super) active: StreamRates,
-    pub(super) next_axes: Option<u64>,
-    pub(super) next_frame_stream: Option<u64>,
+    /// The streams' rates and when each is next due.
+    pub(super) streams: Streams,
     pub(super) step: u32,
     pub(super) trial: u32,
-    /// Recent tared samples (t, wrench, status), kept for settle and capture windows. With
-    /// a force stream on, only the samples written to force.csv, so the quasistatic values
-    /// in steps.csv can be recomputed from the run directory.
-    pub(super) window: VecDeque<(u64, Wrench, u32)>,
-    /// The newest tared sample, recorded or not (contact detection uses every reading).
-    pub(super) latest: Option<(u64, Wrench)>,
-    /// The time of the newest sample the plan had before `latest`'s batch, ns: with it, how
-    /// late the plan can have noticed a threshold crossed (a scaled clock's loop latency, a
-    /// slow reader).
-    pub(super) previous_latest_ns: Option<u64>,
-    pub(super) keep_ns: u64,
+    /// The watchdog's readings as the plan keeps them.
+    pub(super) readings: Readings,
     /// What the run has learned of the gel's relaxation (adaptive settling).
     pub(super) gel: super::adaptive::GelMemory,
     pub(super) step_saturated: bool,
@@ -61,10 +89,8 @@ pub(super) struct Exec<'a> {
     pub(super) mm_per_px: Option<f64>,
     /// The sensor file of `record.gelsight_force`, read before the run starts.
     pub(super) gelsight: Option<std::sync::Arc<sensing::sensor::SensorFile>>,
-    /// The running move stops when the tactile state reaches this.
-    pub(super) slip_stop: Option<analysis::tactile::SlipState>,
-    /// The tactile stop was reached during the current move.
-    pub(super) slip_hit: bool,
+    /// The running move's tactile stop.
+    pub(super) slip: SlipStop,
     /// Where a resumed run continues, and what it replays first.
     pub(super) resume: Option<super::Resume>,
 }
@@ -111,16 +137,10 @@ impl<'a> Exec<'a> {
             tare: Wrench::default(),
             origin: BTreeMap::new(),
             targets: BTreeMap::new(),
-            streams: Vec::new(),
-            active: StreamRates::default(),
-            next_axes: None,
-            next_frame_stream: None,
+            streams: Streams::default(),
             step: 0,
             trial: 0,
-            window: VecDeque::new(),
-            latest: None,
-            previous_latest_ns: None,
-            keep_ns: 0,
+            readings: Readings::default(),
             gel: Default::default(),
             step_saturated: false,
             retracting: false,
@@ -129,8 +149,7 @@ impl<'a> Exec<'a> {
             tactile: None,
             mm_per_px: None,
             gelsight: None,
-            slip_stop: None,
-            slip_hit: false,
+            slip: SlipStop::default(),
             resume: None,
         }
     }
@@ -176,8 +195,8 @@ impl<'a> Exec<'a> {
         if readings.is_empty() {
             return Ok(false);
         }
-        let stream_on = self.active.force_hz.is_some();
-        self.previous_latest_ns = self.latest.map(|(t, _)| t);
+        let stream_on = self.streams.active.force_hz.is_some();
+        self.readings.previous_latest_ns = self.readings.latest.map(|(t, _)| t);
         for r in readings {
             let s = r.sample;
             let w = s.wrench.minus(&self.tare);
@@ -185,9 +204,9 @@ impl<'a> Exec<'a> {
                 self.step_saturated = true;
             }
             if r.record || !stream_on {
-                self.window.push_back((s.t_ns, w, s.status));
+                self.readings.window.push_back((s.t_ns, w, s.status));
             }
-            self.latest = Some((s.t_ns, w));
+            self.readings.latest = Some((s.t_ns, w));
             if r.record {
                 self.progress
                     .force(s.t_ns, [w.fx_n, w.fy_n, w.fz_n, w.tz_nmm]);
@@ -201,9 +220,16 @@ impl<'a> Exec<'a> {
         if let Some(b) = self.progress.live() {
             b.lost_records(m.records_lost());
         }
-        let keep_from = self.now().saturating_sub(self.keep_ns.max(2_000_000_000));
-        while self.window.front().is_some_and(|(t, _, _)| *t < keep_from) {
-            self.window.pop_front();
+        let keep_from = self
+            .now()
+            .saturating_sub(self.readings.keep_ns.max(2_000_000_000));
+        while self
+            .readings
+            .window
+            .front()
+            .is_some_and(|(t, _, _)| *t < keep_from)
+        {
+            self.readings.window.pop_front();
         }
         Ok(true)
     }
@@ -227,13 +253,13 @@ impl<'a> Exec<'a> {
                 ActionKind::Step(s) if self.before_resume(s.step) => self.replay(s).await?,
                 ActionKind::Step(s) => self.step(s).await?,
                 ActionKind::StreamsBegin(r) => {
-                    self.streams.push(*r);
+                    self.streams.scopes.push(*r);
                     self.restream();
                     let t = self.now();
                     self.rec.journal(t, "streams_begin", json!(r), false)?;
                 }
                 ActionKind::StreamsEnd => {
-                    self.streams.pop();
+                    self.streams.scopes.pop();
                     self.restream();
                     let t = self.now();
                     self.rec.journal(t, "streams_end", json!({}), false)?;
@@ -260,22 +286,24 @@ impl<'a> Exec<'a> {
 
     /// Recomputes the active stream rates after a scope change.
     fn restream(&mut self) {
-        self.active = self
+        self.streams.active = self
             .streams
+            .scopes
             .iter()
             .fold(StreamRates::default(), |acc, s| acc.overlay(s));
         let now = self.now();
         if let Some(m) = &self.monitor {
-            m.set_stream(self.active.force_hz);
+            m.set_stream(self.streams.active.force_hz);
         }
-        self.next_axes = self.active.axes_hz.map(|_| now);
-        self.next_frame_stream = self
+        self.streams.next_axes_ns = self.streams.active.axes_hz.map(|_| now);
+        self.streams.next_frame_ns = self
+            .streams
             .active
             .frames_hz
             .filter(|_| self.rig.camera.is_some())
             .map(|_| now);
         // Continuous frames feed the live tactile path; a new block starts a new reference.
-        if self.next_frame_stream.is_some() {
+        if self.streams.next_frame_ns.is_some() {
             if self.tactile.is_none() {
                 let mut t =
                     super::tactile::LiveTactile::new(self.mm_per_px, self.gelsight.as_deref());

@@ -17,7 +17,7 @@ use crate::{Cancel, Resume, RunOutcome};
 /// What to run, where, and how.
 pub struct Launch<'a> {
     /// The checked protocol and rig, with its plan.
-    pub(crate) loaded: &'a experiments::protocol::Loaded,
+    pub(crate) loaded: &'a experiments::load::Loaded,
     /// Directory that receives the run directory.
     pub(crate) out: PathBuf,
     /// Seed of simulated devices.
@@ -38,7 +38,7 @@ pub struct Launch<'a> {
 
 impl<'a> Launch<'a> {
     /// A run of `loaded` into `runs/`, seed 0, in virtual time, quietly.
-    pub fn new(loaded: &'a experiments::protocol::Loaded) -> Self {
+    pub fn new(loaded: &'a experiments::load::Loaded) -> Self {
         Self {
             loaded,
             out: PathBuf::from("runs"),
@@ -132,5 +132,39 @@ impl<'a> Launch<'a> {
         let outcome = runtime.block_on(crate::run(self, cancel));
         runtime.shutdown_background();
         outcome
+    }
+}
+
+/// The clock a run of `loaded` must use when `requested` (a time scale, or virtual time) is
+/// asked for, or nothing is: the twins of `gelrig sim serve` keep their own time and the run
+/// must match it; any real device puts the whole run, simulated devices included, in real
+/// time; otherwise virtual time unless a scale is asked for. An error says why the request
+/// cannot be kept and what to do.
+pub fn clock_for(
+    loaded: &experiments::load::Loaded,
+    requested: Option<ClockMode>,
+) -> Result<ClockMode, String> {
+    let real = loaded.real_devices();
+    match (&loaded.rig.twins, requested) {
+        (Some(t), None) => Ok(ClockMode::Scaled {
+            scale: t.time_scale,
+        }),
+        (Some(t), Some(ClockMode::Scaled { scale })) if scale == t.time_scale => {
+            Ok(ClockMode::Scaled { scale })
+        }
+        (Some(t), Some(_)) => Err(format!(
+            "the rig's twins run at {}× (`twins:` in {}); drop the time scale or restart \
+             `gelrig sim serve` with it",
+            t.time_scale,
+            loaded.rig_path.display()
+        )),
+        (None, c) if real.is_empty() => Ok(c.unwrap_or(ClockMode::Virtual)),
+        (None, Some(_)) => Err(format!(
+            "this run drives real devices ({}) on rig `{}`, which run in real time; drop the \
+             time scale",
+            real.join(", "),
+            loaded.rig.name
+        )),
+        (None, None) => Ok(ClockMode::Monotonic),
     }
 }

@@ -30,6 +30,7 @@ pub mod progress;
 mod resume;
 mod retract;
 mod settle;
+mod step;
 mod tactile;
 mod wait;
 mod watchdog;
@@ -42,22 +43,22 @@ use serde_json::json;
 use simbench::{OpenRequest, Rig};
 
 use crate::progress::Progress;
-use experiments::protocol::{Loaded, plant_spec};
+use experiments::load::Loaded;
+use experiments::protocol::plant_spec;
 use rundir::write::{DeviceRecord, Manifest, RecordError, Recorder, Status};
 
 pub use cancel::Cancel;
 pub use events::{Event, Observer};
 use exec::Exec;
-pub use launch::Launch;
+pub use launch::{Launch, clock_for};
 pub use resume::Resume;
+use watchdog::{Limits, Monitor, TripKind, WatchConfig};
 
-/// The camera's image scale, mm/px: the sensor's view fitted into the frame (as `gelrig
-/// track` reads a run directory's scale).
-/// The sensor file of `record.gelsight_force` (relative to the protocol), read before any
-/// step runs; a file that does not read stops the run there, naming why.
 /// Where a run keeps a copy of the sensor file it read the GelSight's force with.
 pub const GELSIGHT_SENSOR_FILE: &str = rundir::names::GELSIGHT_SENSOR;
 
+/// The sensor file of `record.gelsight_force` (relative to the protocol), read before any
+/// step runs; a file that does not read stops the run there, naming why.
 fn gelsight_sensor(loaded: &Loaded) -> Result<Option<sensing::sensor::SensorFile>, String> {
     let Some(rel) = &loaded.protocol.record.gelsight_force else {
         return Ok(None);
@@ -68,13 +69,14 @@ fn gelsight_sensor(loaded: &Loaded) -> Result<Option<sensing::sensor::SensorFile
         .map_err(|e| e.to_string())
 }
 
+/// The camera's image scale, mm/px: the sensor's view fitted into the frame (as `gelrig
+/// track` reads a run directory's scale).
 fn image_scale(loaded: &Loaded, rig: &Rig) -> Option<f64> {
     let cam = rig.camera.as_ref()?.info();
     let spec = plant_spec(&loaded.protocol, &loaded.compiled).ok()?;
     let s = (spec.view_width_mm / cam.width as f64).max(spec.view_height_mm / cam.height as f64);
     (s.is_finite() && s > 0.0).then_some(s)
 }
-use watchdog::{Limits, Monitor, TripKind, WatchConfig};
 
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -155,7 +157,7 @@ pub(crate) fn period_ns(hz: f64) -> u64 {
 /// directory under `out`, quietly, on a runtime of its own (for studies and scripts; the
 /// `gelrig run` command does the same with progress and signals).
 pub fn run_virtual_blocking(
-    loaded: &experiments::protocol::Loaded,
+    loaded: &experiments::load::Loaded,
     out: &std::path::Path,
     seed: u64,
 ) -> Result<RunOutcome, RecordError> {
@@ -173,59 +175,7 @@ pub async fn run(req: Launch<'_>, cancel: Cancel) -> Result<RunOutcome, RecordEr
         Some(r) => Clock::starting_at(req.clock, r.t_start_ns),
         None => Clock::new(req.clock),
     };
-    let manifest = Manifest {
-        status: Status::Running,
-        reason: None,
-        error: None,
-        protocol: p.name.clone(),
-        protocol_file: loaded.path.display().to_string(),
-        rig: loaded.rig.name.clone(),
-        rig_file: loaded.rig_path.display().to_string(),
-        started_utc: jiff::Timestamp::now().to_string(),
-        ended_utc: None,
-        gelrig_version: env!("CARGO_PKG_VERSION").to_string(),
-        seed: req.seed,
-        clock: clock_label(req.clock),
-        pid: std::process::id(),
-        steps_planned: loaded.compiled.steps,
-        steps_completed: 0,
-        eta_s: [
-            (req.loaded.plan.duration_s.min * 10.0).round() / 10.0,
-            (req.loaded.plan.duration_s.max * 10.0).round() / 10.0,
-        ],
-        devices: Vec::new(),
-        tare: None,
-        origins: BTreeMap::new(),
-        final_positions: BTreeMap::new(),
-        safety_events: Vec::new(),
-        warnings: loaded
-            .warnings
-            .iter()
-            .map(|d| format!("{}:{}: {}", d.line, d.column, d.message))
-            .collect(),
-        resumed: Vec::new(),
-        timing: BTreeMap::new(),
-    };
-    let mut rec = match &req.resume {
-        None => {
-            // The resolved protocol (sensor defaults filled in) is what actually ran.
-            let protocol_yaml = serde_yaml::to_string(p).unwrap_or_else(|_| loaded.text.clone());
-            Recorder::create(&req.out, manifest, &protocol_yaml, &loaded.rig_text)?
-        }
-        Some(r) => {
-            let (mut rec, cut) = Recorder::reopen(&r.dir, |m| r.begin(m))?;
-            let _ = rec.journal(clock.now_ns(), "resume", r.record(&cut), true);
-            rec
-        }
-    };
-    // A resumed run goes on writing `run.mcap` if its first segment did (or if asked).
-    match &req.resume {
-        Some(r) if req.record_mcap || r.dir.join(rundir::names::MCAP).is_file() => {
-            rec.record_mcap_resumed(&loaded.rig_text)?;
-        }
-        None if req.record_mcap => rec.record_mcap(&loaded.rig_text)?,
-        _ => {}
-    }
+    let mut rec = open_record(&req, &clock)?;
     let progress = Progress::new(
         req.progress,
         loaded.compiled.steps,
@@ -259,14 +209,7 @@ pub async fn run(req: Launch<'_>, cancel: Cancel) -> Result<RunOutcome, RecordEr
             return finish(rec, &clock, &progress, Status::Aborted, Some(msg.into()));
         }
     };
-    let devices: Vec<DeviceRecord> = rig
-        .opened
-        .iter()
-        .map(|d| DeviceRecord {
-            role: d.role.clone(),
-            identity: d.identity.clone(),
-        })
-        .collect();
+    let devices = device_records(&rig);
     if let Some(Err(why)) = req.resume.as_ref().map(|r| r.check_devices(&devices)) {
         let msg = format!("resume refused before anything moved: {why}");
         return finish(rec, &clock, &progress, Status::Failed, Some(msg));
@@ -287,27 +230,124 @@ pub async fn run(req: Launch<'_>, cancel: Cancel) -> Result<RunOutcome, RecordEr
     exec.mm_per_px = image_scale(loaded, &exec.rig);
     exec.resume = req.resume.clone();
     let result = match (opened, gelsight_sensor(loaded)) {
-        (Ok(()), Ok(sensor)) => {
-            // The sensor the run read with travels with the run (the protocol only names
-            // it, and the file may be recalibrated later).
-            let kept = match &sensor {
-                Some(s) => s
-                    .write(&exec.rec.dir().join(GELSIGHT_SENSOR_FILE))
-                    .map_err(|e| Stop::Sensor(e.to_string())),
-                None => Ok(()),
-            };
-            exec.gelsight = sensor.map(std::sync::Arc::new);
-            match kept {
-                Ok(()) => exec.run_actions(&loaded.compiled.actions).await,
-                Err(e) => Err(e),
-            }
-        }
+        (Ok(()), Ok(sensor)) => run_plan(&mut exec, sensor, loaded).await,
         (Err(e), _) => Err(Stop::Record(e)),
         (_, Err(why)) => Err(Stop::Sensor(why)),
     };
     let (status, message) = exec.stopped(result).await;
     let retract = exec.retract().await;
-    let (status, message) = match (status, retract) {
+    let (status, message) = with_retract(status, message, retract);
+    let rec = exec.close().await;
+    finish(rec, &clock, &progress, status, message)
+}
+
+/// The manifest a new run starts with (status `running`, nothing done yet).
+fn new_manifest(req: &Launch<'_>) -> Manifest {
+    let loaded = req.loaded;
+    Manifest {
+        status: Status::Running,
+        reason: None,
+        error: None,
+        protocol: loaded.protocol.name.clone(),
+        protocol_file: loaded.path.display().to_string(),
+        rig: loaded.rig.name.clone(),
+        rig_file: loaded.rig_path.display().to_string(),
+        started_utc: jiff::Timestamp::now().to_string(),
+        ended_utc: None,
+        gelrig_version: env!("CARGO_PKG_VERSION").to_string(),
+        seed: req.seed,
+        clock: clock_label(req.clock),
+        pid: std::process::id(),
+        steps_planned: loaded.compiled.steps,
+        steps_completed: 0,
+        eta_s: [
+            (req.loaded.plan.duration_s.min * 10.0).round() / 10.0,
+            (req.loaded.plan.duration_s.max * 10.0).round() / 10.0,
+        ],
+        devices: Vec::new(),
+        tare: None,
+        origins: BTreeMap::new(),
+        final_positions: BTreeMap::new(),
+        safety_events: Vec::new(),
+        warnings: loaded
+            .warnings
+            .iter()
+            .map(|d| format!("{}:{}: {}", d.line, d.column, d.message))
+            .collect(),
+        resumed: Vec::new(),
+        timing: BTreeMap::new(),
+    }
+}
+
+/// The run's recorder: a new run directory under `req.out`, or the resumed run's own
+/// (journaled as a resume); `run.mcap` is written when asked, and a resumed run goes on
+/// writing it if its first segment did.
+fn open_record(req: &Launch<'_>, clock: &Clock) -> Result<Recorder, RecordError> {
+    let loaded = req.loaded;
+    let manifest = new_manifest(req);
+    let mut rec = match &req.resume {
+        None => {
+            // The resolved protocol (sensor defaults filled in) is what actually ran.
+            let protocol_yaml =
+                serde_yaml::to_string(&loaded.protocol).unwrap_or_else(|_| loaded.text.clone());
+            Recorder::create(&req.out, manifest, &protocol_yaml, &loaded.rig_text)?
+        }
+        Some(r) => {
+            let (mut rec, cut) = Recorder::reopen(&r.dir, |m| r.begin(m))?;
+            let _ = rec.journal(clock.now_ns(), "resume", r.record(&cut), true);
+            rec
+        }
+    };
+    match &req.resume {
+        Some(r) if req.record_mcap || r.dir.join(rundir::names::MCAP).is_file() => {
+            rec.record_mcap_resumed(&loaded.rig_text)?;
+        }
+        None if req.record_mcap => rec.record_mcap(&loaded.rig_text)?,
+        _ => {}
+    }
+    Ok(rec)
+}
+
+/// The opened devices as the manifest records them.
+fn device_records(rig: &Rig) -> Vec<DeviceRecord> {
+    rig.opened
+        .iter()
+        .map(|d| DeviceRecord {
+            role: d.role.clone(),
+            identity: d.identity.clone(),
+        })
+        .collect()
+}
+
+/// Runs the protocol's actions with the GelSight sensor file read for it (if any), after
+/// keeping a copy of that file in the run directory: the protocol only names it, and the
+/// file may be recalibrated later.
+async fn run_plan(
+    exec: &mut Exec<'_>,
+    sensor: Option<sensing::sensor::SensorFile>,
+    loaded: &Loaded,
+) -> Result<(), Stop> {
+    let kept = match &sensor {
+        Some(s) => s
+            .write(&exec.rec.dir().join(GELSIGHT_SENSOR_FILE))
+            .map_err(|e| Stop::Sensor(e.to_string())),
+        None => Ok(()),
+    };
+    exec.gelsight = sensor.map(std::sync::Arc::new);
+    match kept {
+        Ok(()) => exec.run_actions(&loaded.compiled.actions).await,
+        Err(e) => Err(e),
+    }
+}
+
+/// The run's status and message once the retract is done: a failed retract fails a
+/// completed run, and is added to the message of one that had already stopped.
+fn with_retract(
+    status: Status,
+    message: Option<String>,
+    retract: Result<(), String>,
+) -> (Status, Option<String>) {
+    match (status, retract) {
         (s, Ok(())) => (s, message),
         (Status::Completed, Err(e)) => (
             Status::Failed,
@@ -320,9 +360,7 @@ pub async fn run(req: Launch<'_>, cancel: Cancel) -> Result<RunOutcome, RecordEr
                 message.unwrap_or_default()
             )),
         ),
-    };
-    let rec = exec.close().await;
-    finish(rec, &clock, &progress, status, message)
+    }
 }
 
 /// Starts the watchdog on the rig's force sensor, with a stopper for every axis.

@@ -237,8 +237,8 @@ impl Exec<'_> {
         }
         if let (Some(b), Some(i)) = (self.progress.live(), index) {
             // In a frame stream the camera's counter steps by its rate over the stream's.
-            let stride = (self.next_frame_stream.is_some())
-                .then_some(self.active.frames_hz)
+            let stride = (self.streams.next_frame_ns.is_some())
+                .then_some(self.streams.active.frames_hz)
                 .flatten()
                 .map(|hz| (fps / hz).round().max(1.0) as u64);
             let size = (frame.width, frame.height);
@@ -337,10 +337,10 @@ impl Exec<'_> {
             }
             self.rec.tactile(&row)?;
         }
-        if let Some(level) = self.slip_stop
+        if let Some(level) = self.slip.stop_at
             && state >= level
         {
-            self.slip_hit = true;
+            self.slip.hit = true;
         }
         Ok(())
     }

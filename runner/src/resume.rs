@@ -1,6 +1,6 @@
 //! Continuing an interrupted, aborted or failed run in its own directory (`gelrig resume`).
 //!
-//! What a resume checks and does, in order (README, "Resuming a run"):
+//! What a resume checks and does, in order (docs/how-to/resume-a-run.md):
 //! 1. The run is not completed and no process is recording it; its recorded protocol
 //!    (`protocol.yaml`, as run) still compiles to the steps it planned.
 //! 2. The devices opened report the identities the run recorded (a different sensor or
@@ -30,7 +30,7 @@ use serde_json::json;
 use super::Stop;
 use super::exec::Exec;
 use super::wait::Until;
-use experiments::protocol::Loaded;
+use experiments::load::Loaded;
 use experiments::protocol::compile::{ActionKind, Step};
 
 /// The gap left on the run's timebase between the last record and the resumed segment, so
@@ -74,6 +74,95 @@ fn refuse(dir: &Path, why: impl std::fmt::Display) -> String {
     format!("cannot resume {}: {why}", dir.display())
 }
 
+/// Whether the run of `manifest` can be resumed with `loaded`: not completed, not still
+/// running, and its protocol still the one it planned. Returns how its last segment ended
+/// (`interrupted` for a run that stopped without saying).
+fn resumable(dir: &Path, manifest: &Manifest, loaded: &Loaded) -> Result<String, String> {
+    let previous_status = match manifest.status {
+        Status::Completed => {
+            return Err(refuse(
+                dir,
+                "it completed every step; fix: nothing to resume — `gelrig report` it",
+            ));
+        }
+        Status::Running if is_locked(dir) => {
+            return Err(refuse(
+                dir,
+                format!(
+                    "it is still running (process {} holds run.lock); fix: wait for it, or stop it first",
+                    manifest.pid
+                ),
+            ));
+        }
+        Status::Running => "interrupted".to_string(),
+        s => s.name().to_string(),
+    };
+    if manifest.protocol != loaded.protocol.name || manifest.steps_planned != loaded.compiled.steps
+    {
+        return Err(refuse(
+            dir,
+            format!(
+                "its protocol.yaml now reads as `{}` with {} steps, and the run was `{}` with {}; fix: restore the run directory's protocol.yaml",
+                loaded.protocol.name,
+                loaded.compiled.steps,
+                manifest.protocol,
+                manifest.steps_planned
+            ),
+        ));
+    }
+    Ok(previous_status)
+}
+
+/// What a resumed run does with the steps before the one it continues at.
+struct ReplayPlan {
+    /// Completed steps outside trials: the position each ended at (from the origin) and
+    /// how long it settled, s.
+    replay: BTreeMap<u32, (Option<f64>, f64)>,
+    /// The replayed step held for its settle time (the last one, if outside trials).
+    resettle: Option<u32>,
+    /// Trials wholly before.
+    skipped_trials: BTreeSet<u32>,
+}
+
+/// The [`ReplayPlan`] of a run continuing at `from_step`, from the plan's `steps` (each
+/// with its trial, 0 outside trials) and the rows `done`.
+fn replay_plan(
+    steps: &[(&Step, u32)],
+    done: &BTreeMap<u32, &StepRow>,
+    from_step: u32,
+) -> ReplayPlan {
+    let replay: BTreeMap<u32, (Option<f64>, f64)> = steps
+        .iter()
+        .filter(|(s, t)| *t == 0 && s.step < from_step)
+        .filter_map(|(s, _)| {
+            done.get(&s.step)
+                .map(|r| (s.step, (r.position, r.settle_s)))
+        })
+        .collect();
+    let resettle = steps
+        .iter()
+        .rev()
+        .find(|(s, _)| s.step < from_step)
+        .filter(|(_, t)| *t == 0)
+        .map(|(s, _)| s.step);
+    let mut first_of_trial: BTreeMap<u32, u32> = BTreeMap::new();
+    for (s, t) in steps {
+        if *t != 0 {
+            first_of_trial.entry(*t).or_insert(s.step);
+        }
+    }
+    let skipped_trials = first_of_trial
+        .into_iter()
+        .filter(|(_, first)| *first < from_step)
+        .map(|(t, _)| t)
+        .collect();
+    ReplayPlan {
+        replay,
+        resettle,
+        skipped_trials,
+    }
+}
+
 impl Resume {
     /// Reads what `dir` holds and decides where the run continues. `loaded` is the run's
     /// recorded protocol and rig.
@@ -84,39 +173,7 @@ impl Resume {
         mode: ClockMode,
     ) -> Result<Self, String> {
         let manifest = read_manifest(dir).map_err(|e| refuse(dir, e))?;
-        let previous_status = match manifest.status {
-            Status::Completed => {
-                return Err(refuse(
-                    dir,
-                    "it completed every step; fix: nothing to resume — `gelrig report` it",
-                ));
-            }
-            Status::Running if is_locked(dir) => {
-                return Err(refuse(
-                    dir,
-                    format!(
-                        "it is still running (process {} holds run.lock); fix: wait for it, or stop it first",
-                        manifest.pid
-                    ),
-                ));
-            }
-            Status::Running => "interrupted".to_string(),
-            s => s.name().to_string(),
-        };
-        if manifest.protocol != loaded.protocol.name
-            || manifest.steps_planned != loaded.compiled.steps
-        {
-            return Err(refuse(
-                dir,
-                format!(
-                    "its protocol.yaml now reads as `{}` with {} steps, and the run was `{}` with {}; fix: restore the run directory's protocol.yaml",
-                    loaded.protocol.name,
-                    loaded.compiled.steps,
-                    manifest.protocol,
-                    manifest.steps_planned
-                ),
-            ));
-        }
+        let previous_status = resumable(dir, &manifest, loaded)?;
         let rows: Vec<StepRow> =
             read_csv(&dir.join(rundir::names::STEPS)).map_err(|e| refuse(dir, e))?;
         let rows = Segments::last_per_step(rows, |r| r.step);
@@ -151,31 +208,11 @@ impl Resume {
                 .find(|(_, t)| *t == trial)
                 .map_or(first_missing, |(s, _)| s.step)
         };
-        let replay: BTreeMap<u32, (Option<f64>, f64)> = steps
-            .iter()
-            .filter(|(s, t)| *t == 0 && s.step < from_step)
-            .filter_map(|(s, _)| {
-                done.get(&s.step)
-                    .map(|r| (s.step, (r.position, r.settle_s)))
-            })
-            .collect();
-        let resettle = steps
-            .iter()
-            .rev()
-            .find(|(s, _)| s.step < from_step)
-            .filter(|(_, t)| *t == 0)
-            .map(|(s, _)| s.step);
-        let mut first_of_trial: BTreeMap<u32, u32> = BTreeMap::new();
-        for (s, t) in &steps {
-            if *t != 0 {
-                first_of_trial.entry(*t).or_insert(s.step);
-            }
-        }
-        let skipped_trials = first_of_trial
-            .into_iter()
-            .filter(|(_, first)| *first < from_step)
-            .map(|(t, _)| t)
-            .collect();
+        let ReplayPlan {
+            replay,
+            resettle,
+            skipped_trials,
+        } = replay_plan(&steps, &done, from_step);
         let last_ns = last_record_ns(dir);
         if mode == ClockMode::Monotonic && rig::clock::monotonic_ns() <= last_ns {
             return Err(refuse(

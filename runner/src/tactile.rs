@@ -28,11 +28,9 @@ pub(super) struct LiveTactile {
     failed: Option<String>,
     /// The failure was handed out.
     reported: bool,
-    /// The GelSight's force, when the protocol records it: the calibrated reader and the
-    /// matching of its markers to this block's reference (at the first tracked frame).
-    gelsight: Option<(sensing::sensor::reader::Reader, Option<Vec<Option<usize>>>)>,
-    /// The gel's load history for the GelSight's Fz, made at the first reading.
-    gelsight_history: Option<sensing::sensor::history::LoadHistory>,
+    /// The GelSight's force, when the protocol records it: the calibrated reader, matched
+    /// to this block's reference at its first tracked frame.
+    gelsight: Option<sensing::sensor::live::LiveReader>,
     /// Why the GelSight's force cannot be read in this block, until handed out.
     gelsight_error: Option<String>,
     /// The live view watches: keep the last frame's arrows and contact outline for it.
@@ -46,8 +44,7 @@ impl LiveTactile {
         sensor: Option<&sensing::sensor::SensorFile>,
     ) -> Self {
         Self {
-            gelsight: sensor.map(|s| (sensing::sensor::reader::Reader::new(s), None)),
-            gelsight_history: None,
+            gelsight: sensor.map(sensing::sensor::live::LiveReader::new),
             gelsight_error: None,
             pipeline: None,
             monitor: TactileMonitor::new(TactileParams::default()),
@@ -88,27 +85,17 @@ impl LiveTactile {
         seen: Option<sensing::sensor::history::Region>,
         t_ns: u64,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
-        let (reader, map) = self.gelsight.as_mut()?;
-        if map.is_none() {
-            match reader.layout.match_markers(&field.reference_px) {
-                Ok(m) => *map = Some(m),
-                Err(e) => {
-                    self.gelsight_error = Some(format!(
-                        "the GelSight's force is not read in this record block: {e}"
-                    ));
-                    self.gelsight = None;
-                    return None;
-                }
+        let reader = self.gelsight.as_mut()?;
+        match reader.read_field(field, seen, t_ns) {
+            Ok(w) => Some((w.value, w.sd)),
+            Err(e) => {
+                self.gelsight_error = Some(format!(
+                    "the GelSight's force is not read in this record block: {e}"
+                ));
+                self.gelsight = None;
+                None
             }
         }
-        // The live path always looks for the contact region.
-        let history = self.gelsight_history.get_or_insert_with(|| {
-            sensing::sensor::history::LoadHistory::new(reader.memory(), reader.fz_range_n(), true)
-        });
-        let region = history.region(field, seen);
-        let reading = reader.read(field, region, map.as_ref()?);
-        let w = reader.wrench(&reading, region, history, t_ns);
-        Some((w.value, w.sd))
     }
 
     /// The grip has closed (or re-closed): the next frame's field is the pressing field.
@@ -187,10 +174,7 @@ impl LiveTactile {
                 second_moments_px2: Some(c.second_moments_px2),
             });
         let t = self.monitor.update(&field, contact);
-        // The GelSight's force reads the interior field, as its calibration and `gelrig
-        // track --sensor` do (`markers.csv`'s tracked and merged markers): border markers'
-        // centroids are biased by the image's edge, and counted here they put the live
-        // reading 13 % off the same frames read afterwards.
+        // The GelSight's force reads the interior field (`sensing::sensor::live`).
         let gelsight = if self.gelsight.is_some() {
             let interior = MarkerField::interior_from_tracker(pipeline.tracker());
             self.gelsight_wrench(&interior, region, frame.t_ns)

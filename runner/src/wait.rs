@@ -5,6 +5,7 @@
 use rig::config::AxisRole;
 use rig::units::fmt_value;
 
+use super::adaptive::AdaptiveTrack;
 use super::exec::Exec;
 use super::settle::SettleTrack;
 use super::{Stop, watchdog::Monitor};
@@ -85,188 +86,264 @@ impl Until {
     }
 }
 
+/// What one look at the awaited condition decided.
+enum Next {
+    /// What the wait waits for has happened.
+    Done,
+    /// Not yet: look again by this time on the run's clock, ns (sooner when a schedule is
+    /// due, the watchdog has news or the operator interrupts).
+    At(u64),
+    /// Not yet: look again at once, without sleeping (a frame was just captured).
+    Again,
+}
+
 impl Exec<'_> {
     /// Waits for `until`, servicing every due schedule meanwhile.
     pub(super) async fn wait(&mut self, until: &mut Until) -> Result<(), Stop> {
-        let mut next_poll: u64 = self.now();
-        let mut frames_due: Option<u64> = None;
+        let mut next_poll_ns: u64 = self.now();
+        let mut frames_due_ns: Option<u64> = None;
         loop {
             self.check_stop()?;
             let fresh = self.drain()?;
             let now = self.now();
-            if let (Some(t), Some(hz)) = (self.next_axes, self.active.axes_hz)
-                && now >= t
-            {
-                self.record_axes(now).await?;
-                let p = super::period_ns(hz);
-                self.next_axes = Some(if t + p <= now { now + p } else { t + p });
-            }
-            if let (Some(t), Some(hz)) = (self.next_frame_stream, self.active.frames_hz)
-                && now >= t
-            {
-                self.capture_frame().await?;
-                let p = super::period_ns(hz);
-                let now = self.now();
-                self.next_frame_stream = Some(if t + p <= now { now + p } else { t + p });
-            }
-            let deadline: u64;
-            match until {
+            self.service_streams(now).await?;
+            let next = match until {
                 Until::Time(t) => {
                     if now >= *t {
-                        return Ok(());
+                        Next::Done
+                    } else {
+                        Next::At(*t)
                     }
-                    deadline = *t;
                 }
-                Until::Motion(watch) => {
-                    if self.slip_hit {
-                        return Ok(());
-                    }
-                    if now >= next_poll {
-                        if self.arrived(watch, now).await? {
-                            return Ok(());
-                        }
-                        if let Some(late) = watch.iter().find(|d| now >= d.by_ns) {
-                            return Err(self.stuck(late).await);
-                        }
-                        next_poll = now
-                            + watch
-                                .iter()
-                                .map(|d| self.poll_ns(d.axis))
-                                .min()
-                                .unwrap_or(50_000_000);
-                    }
-                    let by = watch.iter().map(|d| d.by_ns).min().unwrap_or(next_poll);
-                    deadline = next_poll.min(by.max(now + 1));
-                }
-                Until::Settle(track) => {
-                    let elapsed = now.saturating_sub(track.start_ns);
-                    if elapsed >= track.max_ns {
-                        track.verdict = Some("timeout");
-                        return Ok(());
-                    }
-                    let bound = fresh
-                        .then(|| track.drift_bound(&self.window, now))
-                        .flatten();
-                    if let (Some(board), Some(b)) = (self.progress.live(), bound) {
-                        let unit = if track.channel.is_torque() {
-                            "N·mm/s"
-                        } else {
-                            "N/s"
-                        };
-                        board.settle(track.start_ns, now, b, track.below, unit);
-                    }
-                    if elapsed >= track.min_ns
-                        && elapsed >= track.window_ns
-                        && bound.is_some_and(|b| b < track.below)
-                    {
-                        track.verdict = Some("converged");
-                        return Ok(());
-                    }
-                    deadline = track.start_ns + track.max_ns;
-                }
-                Until::Adaptive(track) => {
-                    let elapsed = now.saturating_sub(track.start_ns);
-                    if elapsed >= track.max_ns {
-                        // One last fit on the whole record: the step keeps its F∞ and σ.
-                        let settled = track.judge(&self.window, now, &self.gel);
-                        track.verdict = Some(if settled { "converged" } else { "timeout" });
-                        return Ok(());
-                    }
-                    if elapsed >= track.min_ns && now >= track.next_ns {
-                        let settled = track.judge(&self.window, now, &self.gel);
-                        if let (Some(board), Some((stat, band))) =
-                            (self.progress.live(), track.band(&self.gel))
-                        {
-                            let unit = if track.channel.is_torque() {
-                                "N·mm"
-                            } else {
-                                "N"
-                            };
-                            board.settle(track.start_ns, now, stat, band, unit);
-                        }
-                        if settled {
-                            track.verdict = Some("converged");
-                            return Ok(());
-                        }
-                    }
-                    deadline = track
-                        .next_ns
-                        .max(track.start_ns + track.min_ns)
-                        .min(track.start_ns + track.max_ns);
-                }
-                Until::Frames(n) => {
-                    if *n == 0 {
-                        return Ok(());
-                    }
-                    let due = *frames_due.get_or_insert(now);
-                    if now >= due {
-                        self.capture_frame().await?;
-                        *n -= 1;
-                        frames_due = Some(self.now());
-                        if *n == 0 {
-                            return Ok(());
-                        }
-                        continue;
-                    }
-                    deadline = due;
-                }
+                Until::Motion(watch) => self.look_motion(watch, now, &mut next_poll_ns).await?,
+                Until::Settle(track) => self.look_settle(track, now, fresh),
+                Until::Adaptive(track) => self.look_adaptive(track, now),
+                Until::Frames(n) => self.look_frames(n, now, &mut frames_due_ns).await?,
                 Until::Contact {
                     channel,
                     threshold,
                     deadline: by,
                 } => {
-                    if fresh
-                        && let Some((_, w)) = self.latest
-                        && channel.of(&w).abs() >= *threshold
-                    {
-                        return Ok(());
-                    }
-                    let axis = by.axis;
-                    if now >= next_poll {
-                        // The end of the creep, judged like any move: a first "at rest" before
-                        // the stage has shown motion is a late start, not the end.
-                        if self.arrived(std::slice::from_mut(by), now).await? {
-                            return Err(Stop::NoContact(format!(
-                                "the {axis} axis reached the end of the approach without |{}| reaching {} {}",
-                                channel.name(),
-                                fmt_value(*threshold),
-                                if channel.is_torque() { "N·mm" } else { "N" }
-                            )));
-                        }
-                        if now >= by.by_ns {
-                            return Err(self.stuck(by).await);
-                        }
-                        next_poll = now + self.poll_ns(axis);
-                    }
-                    deadline = next_poll.min(by.by_ns.max(now + 1));
+                    self.look_contact(*channel, *threshold, by, now, fresh, &mut next_poll_ns)
+                        .await?
                 }
+            };
+            let deadline = match next {
+                Next::Done => return Ok(()),
+                Next::Again => continue,
+                Next::At(t) => t,
+            };
+            self.sleep_until_due(deadline, now, until.needs_readings())
+                .await;
+        }
+    }
+
+    /// Records the axes and captures a stream frame when their schedules are due at `now`
+    /// (ns), and schedules the next of each (a late one is not caught up).
+    async fn service_streams(&mut self, now: u64) -> Result<(), Stop> {
+        if let (Some(t), Some(hz)) = (self.streams.next_axes_ns, self.streams.active.axes_hz)
+            && now >= t
+        {
+            self.record_axes(now).await?;
+            let p = super::period_ns(hz);
+            self.streams.next_axes_ns = Some(if t + p <= now { now + p } else { t + p });
+        }
+        if let (Some(t), Some(hz)) = (self.streams.next_frame_ns, self.streams.active.frames_hz)
+            && now >= t
+        {
+            self.capture_frame().await?;
+            let p = super::period_ns(hz);
+            let now = self.now();
+            self.streams.next_frame_ns = Some(if t + p <= now { now + p } else { t + p });
+        }
+        Ok(())
+    }
+
+    /// Sleeps until `deadline_ns` or the next due schedule or forced drain, whichever is
+    /// first, waking early on the watchdog's news (each reading, when `readings` can end
+    /// the wait) or an interrupt; the progress display ticks first. Yields once when
+    /// something is already due.
+    async fn sleep_until_due(&self, deadline_ns: u64, now: u64, readings: bool) {
+        let drain = self.monitor.as_ref().map(|_| now + DRAIN_NS);
+        let next = [
+            Some(deadline_ns),
+            self.streams.next_axes_ns,
+            self.streams.next_frame_ns,
+            drain,
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+        .unwrap_or(deadline_ns);
+        let tick_t = self.t_s();
+        self.progress
+            .tick(self.step, &self.what, self.phase, tick_t);
+        if next > now {
+            let seen = self.cancel.count();
+            let cancel = self.cancel.clone();
+            tokio::select! {
+                _ = self.clock.sleep_until_ns(next) => {}
+                _ = watchdog_news(self.monitor.as_ref(), readings) => {}
+                _ = cancel.interrupted(seen) => {}
             }
-            let drain = self.monitor.as_ref().map(|_| now + DRAIN_NS);
-            let next = [
-                Some(deadline),
-                self.next_axes,
-                self.next_frame_stream,
-                drain,
-            ]
-            .into_iter()
-            .flatten()
-            .min()
-            .unwrap_or(deadline);
-            let tick_t = self.t_s();
-            self.progress
-                .tick(self.step, &self.what, self.phase, tick_t);
-            if next > now {
-                let seen = self.cancel.count();
-                let cancel = self.cancel.clone();
-                tokio::select! {
-                    _ = self.clock.sleep_until_ns(next) => {}
-                    _ = watchdog_news(self.monitor.as_ref(), until.needs_readings()) => {}
-                    _ = cancel.interrupted(seen) => {}
-                }
+        } else {
+            tokio::task::yield_now().await;
+        }
+    }
+
+    /// Axes that must come to rest: done when all have arrived (or a tactile stop was hit);
+    /// an axis past its deadline is stopped and fails the wait. Polls at the axes' rate.
+    async fn look_motion(
+        &mut self,
+        watch: &mut [Deadline],
+        now: u64,
+        next_poll_ns: &mut u64,
+    ) -> Result<Next, Stop> {
+        if self.slip.hit {
+            return Ok(Next::Done);
+        }
+        if now >= *next_poll_ns {
+            if self.arrived(watch, now).await? {
+                return Ok(Next::Done);
+            }
+            if let Some(late) = watch.iter().find(|d| now >= d.by_ns) {
+                return Err(self.stuck(late).await);
+            }
+            *next_poll_ns = now
+                + watch
+                    .iter()
+                    .map(|d| self.poll_ns(d.axis))
+                    .min()
+                    .unwrap_or(50_000_000);
+        }
+        let by = watch.iter().map(|d| d.by_ns).min().unwrap_or(*next_poll_ns);
+        Ok(Next::At((*next_poll_ns).min(by.max(now + 1))))
+    }
+
+    /// The rate settle rule on the newest readings (`fresh`): done when the drift bound
+    /// stays below the threshold after the shortest settle and a full window, or at the
+    /// longest settle (a timeout). Shows the bound on the live view.
+    fn look_settle(&self, track: &mut SettleTrack, now: u64, fresh: bool) -> Next {
+        let elapsed = now.saturating_sub(track.start_ns);
+        if elapsed >= track.max_ns {
+            track.verdict = Some("timeout");
+            return Next::Done;
+        }
+        let bound = fresh
+            .then(|| track.drift_bound(&self.readings.window, now))
+            .flatten();
+        if let (Some(board), Some(b)) = (self.progress.live(), bound) {
+            let unit = if track.channel.is_torque() {
+                "N·mm/s"
             } else {
-                tokio::task::yield_now().await;
+                "N/s"
+            };
+            board.settle(track.start_ns, now, b, track.below, unit);
+        }
+        if elapsed >= track.min_ns
+            && elapsed >= track.window_ns
+            && bound.is_some_and(|b| b < track.below)
+        {
+            track.verdict = Some("converged");
+            return Next::Done;
+        }
+        Next::At(track.start_ns + track.max_ns)
+    }
+
+    /// The adaptive settle rule: F∞ fitted when a fit is due (after the shortest settle),
+    /// done once it is known within the tolerance; at the longest settle one last fit on the
+    /// whole record decides. Shows the estimate's band on the live view.
+    fn look_adaptive(&self, track: &mut AdaptiveTrack, now: u64) -> Next {
+        let elapsed = now.saturating_sub(track.start_ns);
+        if elapsed >= track.max_ns {
+            // One last fit on the whole record: the step keeps its F∞ and σ.
+            let settled = track.judge(&self.readings.window, now, &self.gel);
+            track.verdict = Some(if settled { "converged" } else { "timeout" });
+            return Next::Done;
+        }
+        if elapsed >= track.min_ns && now >= track.next_ns {
+            let settled = track.judge(&self.readings.window, now, &self.gel);
+            if let (Some(board), Some((stat, band))) = (self.progress.live(), track.band(&self.gel))
+            {
+                let unit = if track.channel.is_torque() {
+                    "N·mm"
+                } else {
+                    "N"
+                };
+                board.settle(track.start_ns, now, stat, band, unit);
+            }
+            if settled {
+                track.verdict = Some("converged");
+                return Next::Done;
             }
         }
+        Next::At(
+            track
+                .next_ns
+                .max(track.start_ns + track.min_ns)
+                .min(track.start_ns + track.max_ns),
+        )
+    }
+
+    /// Frames still to capture (`left`): one each time the previous is done, back to back.
+    async fn look_frames(
+        &mut self,
+        left: &mut u32,
+        now: u64,
+        frames_due_ns: &mut Option<u64>,
+    ) -> Result<Next, Stop> {
+        if *left == 0 {
+            return Ok(Next::Done);
+        }
+        let due = *frames_due_ns.get_or_insert(now);
+        if now >= due {
+            self.capture_frame().await?;
+            *left -= 1;
+            *frames_due_ns = Some(self.now());
+            if *left == 0 {
+                return Ok(Next::Done);
+            }
+            return Ok(Next::Again);
+        }
+        Ok(Next::At(due))
+    }
+
+    /// A creep to contact: done when a fresh reading's |force along `channel`| reaches
+    /// `threshold` (N or N·mm); the creep coming to the end of its travel first fails the
+    /// wait, and so does its deadline.
+    async fn look_contact(
+        &mut self,
+        channel: Channel,
+        threshold: f64,
+        by: &mut Deadline,
+        now: u64,
+        fresh: bool,
+        next_poll_ns: &mut u64,
+    ) -> Result<Next, Stop> {
+        if fresh
+            && let Some((_, w)) = self.readings.latest
+            && channel.of(&w).abs() >= threshold
+        {
+            return Ok(Next::Done);
+        }
+        let axis = by.axis;
+        if now >= *next_poll_ns {
+            // The end of the creep, judged like any move: a first "at rest" before the stage
+            // has shown motion is a late start, not the end.
+            if self.arrived(std::slice::from_mut(by), now).await? {
+                return Err(Stop::NoContact(format!(
+                    "the {axis} axis reached the end of the approach without |{}| reaching {} {}",
+                    channel.name(),
+                    fmt_value(threshold),
+                    if channel.is_torque() { "N·mm" } else { "N" }
+                )));
+            }
+            if now >= by.by_ns {
+                return Err(self.stuck(by).await);
+            }
+            *next_poll_ns = now + self.poll_ns(axis);
+        }
+        Ok(Next::At((*next_poll_ns).min(by.by_ns.max(now + 1))))
     }
 
     pub(super) fn poll_ns(&self, axis: AxisRole) -> u64 {

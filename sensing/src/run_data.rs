@@ -45,8 +45,8 @@ impl RunData {
 }
 
 /// The run's protocol, loaded against its own rig file; `Err` says why it does not load.
-pub fn run_protocol(dir: &Path) -> Result<experiments::protocol::Loaded, String> {
-    experiments::protocol::load(
+pub fn run_protocol(dir: &Path) -> Result<experiments::load::Loaded, String> {
+    experiments::load::load(
         &dir.join(rundir::names::PROTOCOL),
         Some(&dir.join(rundir::names::RIG)),
     )

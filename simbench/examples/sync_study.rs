@@ -17,6 +17,7 @@ use rig::twins::netft::{NetFtTwin, TwinParams};
 use rig::{Clock, ClockMode, ForceSample, lock};
 use simbench::frame_timing::{FrameTiming, Injected};
 
+/// The `q` quantile of `v` (nearest rank; NaN when empty).
 fn quantile(v: &[f64], q: f64) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
@@ -25,12 +26,11 @@ fn quantile(v: &[f64], q: f64) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
-#[tokio::main(flavor = "multi_thread", worker_threads = 2)]
-async fn main() {
-    let seconds: f64 = std::env::args()
-        .nth(1)
-        .and_then(|a| a.parse().ok())
-        .unwrap_or(60.0);
+/// The camera's exposure, s.
+const EXPOSURE_S: f64 = 0.01;
+
+/// The Net F/T twin at 7 kHz with 2 ms latency, ±5 ms jitter and 50 ppm drift.
+fn start_twin() -> NetFtTwin {
     let twin = NetFtTwin::spawn(TwinParams {
         rate_hz: 7000.0,
         cal: CalInfo {
@@ -49,8 +49,12 @@ async fn main() {
         f.jitter_ms = 5.0;
         f.drift_ppm = 50.0;
     }
-    let clock = Clock::new(ClockMode::Scaled { scale: 1.0 });
-    let mut sensor = NetFtSensor::open(
+    twin
+}
+
+/// The production driver on the twin, told of its 2 ms latency.
+async fn open_sensor(twin: &NetFtTwin, clock: &Clock) -> NetFtSensor {
+    NetFtSensor::open(
         NetFtSettings {
             rdt: twin.rdt_addr(),
             calibration: twin.calibration_addr(),
@@ -62,11 +66,14 @@ async fn main() {
         clock.clone(),
     )
     .await
-    .expect("open the driver");
-    let exposure_s = 0.01;
-    let mut camera = FrameTiming::new(
+    .expect("open the driver")
+}
+
+/// The simulated camera's timing: 25 Hz, with its own latency, jitter and −30 ppm drift.
+fn camera_timing() -> FrameTiming {
+    FrameTiming::new(
         25.0,
-        exposure_s,
+        EXPOSURE_S,
         Injected {
             latency_s: 0.002,
             jitter_s: 0.005,
@@ -74,13 +81,21 @@ async fn main() {
         },
         0.002,
         7,
-    );
-    let t0 = clock.now_ns();
-    let end = t0 + (seconds * 1e9) as u64;
+    )
+}
+
+/// Frames until `end_ns`, reading the sensor after each: every force sample received, and
+/// each frame's (stamp, true exposure midpoint, arrival), ns.
+async fn record(
+    clock: &Clock,
+    sensor: &mut NetFtSensor,
+    camera: &mut FrameTiming,
+    end_ns: u64,
+) -> (Vec<ForceSample>, Vec<(u64, u64, u64)>) {
     let mut samples: Vec<ForceSample> = Vec::new();
     // (frame stamp, true exposure midpoint, frame arrival)
     let mut frames: Vec<(u64, u64, u64)> = Vec::new();
-    while clock.now_ns() < end {
+    while clock.now_ns() < end_ns {
         let f = camera.next_after(clock.now_ns());
         // Stamped at its arrival, as the kernel stamps a buffer (the task wakes a timer
         // tick later).
@@ -93,20 +108,32 @@ async fn main() {
     }
     tokio::time::sleep(Duration::from_millis(100)).await;
     samples.extend(sensor.take_received());
-    let stats = sensor.stats();
-    let truth: HashMap<u32, u64> = twin
-        .sample_times()
-        .into_iter()
-        .map(|(ft, at)| (ft, clock.ns_at(at)))
-        .collect();
-    // Frame-to-force offset error per frame, after 5 s (both models ready): the frame's
-    // time error less the mean time error of the force samples matched to it.
-    let half = (exposure_s * 0.5e9) as u64;
+    (samples, frames)
+}
+
+/// Per frame after `from_ns`, ms: the frame-to-force offset error, the frame's own time
+/// error, and the offset error had the frame been stamped on arrival.
+struct Errors {
+    offset_ms: Vec<f64>,
+    frame_ms: Vec<f64>,
+    arrival_ms: Vec<f64>,
+}
+
+/// The [`Errors`] of `frames` against the force `samples`, with the twin's true sample
+/// times (`truth`, by sequence number, ns), for frames stamped from `from_ns` on.
+fn errors(
+    frames: &[(u64, u64, u64)],
+    samples: &[ForceSample],
+    truth: &HashMap<u32, u64>,
+    from_ns: u64,
+) -> Errors {
+    // The frame's time error less the mean time error of the force samples matched to it.
+    let half = (EXPOSURE_S * 0.5e9) as u64;
     let mut offset_ms = Vec::new();
     let mut frame_ms = Vec::new();
     let mut arrival_ms = Vec::new();
-    for &(stamp, mid, arrival) in &frames {
-        if stamp < t0 + 5_000_000_000 {
+    for &(stamp, mid, arrival) in frames {
+        if stamp < from_ns {
             continue;
         }
         let inside: Vec<f64> = samples
@@ -127,9 +154,41 @@ async fn main() {
         frame_ms.push(frame_err.abs() * 1e-6);
         // What stamping the frame on arrival (less the known latency) would have given.
         arrival_ms.push(
-            (arrival as f64 - 0.002e9 - exposure_s * 0.5e9 - mid as f64 - force_err).abs() * 1e-6,
+            (arrival as f64 - 0.002e9 - EXPOSURE_S * 0.5e9 - mid as f64 - force_err).abs() * 1e-6,
         );
     }
+    Errors {
+        offset_ms,
+        frame_ms,
+        arrival_ms,
+    }
+}
+
+#[tokio::main(flavor = "multi_thread", worker_threads = 2)]
+async fn main() {
+    let seconds: f64 = std::env::args()
+        .nth(1)
+        .and_then(|a| a.parse().ok())
+        .unwrap_or(60.0);
+    let twin = start_twin();
+    let clock = Clock::new(ClockMode::Scaled { scale: 1.0 });
+    let mut sensor = open_sensor(&twin, &clock).await;
+    let mut camera = camera_timing();
+    let t0 = clock.now_ns();
+    let end = t0 + (seconds * 1e9) as u64;
+    let (samples, frames) = record(&clock, &mut sensor, &mut camera, end).await;
+    let stats = sensor.stats();
+    let truth: HashMap<u32, u64> = twin
+        .sample_times()
+        .into_iter()
+        .map(|(ft, at)| (ft, clock.ns_at(at)))
+        .collect();
+    // Frame-to-force offset error per frame, after 5 s (both models ready).
+    let Errors {
+        offset_ms,
+        frame_ms,
+        arrival_ms,
+    } = errors(&frames, &samples, &truth, t0 + 5_000_000_000);
     let timing = sensor.timing().expect("timing");
     println!(
         "{seconds} s: force records received {}, lost {}, out of order {}, jumps {}, malformed {}",

@@ -215,6 +215,35 @@ pub async fn serve(rig: &RigConfig, options: ServeOptions) -> Result<Served, Str
     bound.twins = Some(TwinsConfig { time_scale: scale });
     let mut listing = Vec::new();
     let mut probes: Vec<(AxisRole, PositionProbe)> = Vec::new();
+    let stages = start_stage_twins(&mut bound, scale, &timing, &mut listing, &mut probes).await?;
+    let netft = start_netft_twin(rig, &mut bound, options, &mut listing, probes)?;
+    Ok(Served {
+        bound,
+        listing,
+        _zaber: stages.zaber,
+        _smc100: stages.smc100,
+        _modbus: stages.modbus,
+        _netft: netft,
+    })
+}
+
+/// The stage twins of a rig, by kind.
+struct StageTwins {
+    zaber: Vec<ZaberTwin>,
+    smc100: Vec<Smc100Twin>,
+    modbus: Vec<ModbusTwin>,
+}
+
+/// Starts a twin for every wire stage of `bound` at `scale` (with the drive behaviour
+/// `timing` gives for a device step), writing each twin's address into `bound`, a line for
+/// the operator into `listing`, and a reader of its position into `probes`.
+async fn start_stage_twins(
+    bound: &mut RigConfig,
+    scale: f64,
+    timing: &impl Fn(f64) -> rig::twins::motion::Timing,
+    listing: &mut Vec<String>,
+    probes: &mut Vec<(AxisRole, PositionProbe)>,
+) -> Result<StageTwins, String> {
     let (mut zaber, mut smc100, mut modbus) = (Vec::new(), Vec::new(), Vec::new());
     let fail = |role: &AxisRole, e: std::io::Error| format!("{role}: starting its twin: {e}");
     for (role, cfg) in bound.axes.iter_mut() {
@@ -276,55 +305,66 @@ pub async fn serve(rig: &RigConfig, options: ServeOptions) -> Result<Served, Str
             AxisDriver::Sim | AxisDriver::Manual => {}
         }
     }
-    let mut netft = None;
-    if let Some(f) = bound.force.as_mut()
-        && matches!(f.driver, ForceDriver::NetFt)
-    {
-        let twin = NetFtTwin::spawn(NetFtParams {
-            rate_hz: netft_rate_hz(scale),
-            cal: rig::drivers::netft_rdt::CalInfo {
-                force_unit: 2,
-                torque_unit: 4,
-                counts_per_force: 1_000_000 / 7 * 10,
-                counts_per_torque: 1000,
-            },
-            range: f.model.range(),
-            first_seq: (1, 0),
-        })
-        .map_err(|e| format!("force: starting the net f/t twin: {e}"))?;
-        f.address = Some(twin.rdt_addr().to_string());
-        f.calibration_port = Some(twin.calibration_addr().port());
-        listing.push(format!(
-            "force: net f/t twin at {} (calibration port {})",
-            twin.rdt_addr(),
-            twin.calibration_addr().port()
-        ));
-        if let Some((spec, axes)) = options.plant {
-            let mut plant = TwinPlant::new(rig, spec, &axes, options.seed)
-                .map_err(|e| format!("the simulated elastomer: {e}"))?;
-            // Only the stages the protocol moves touch the elastomer.
-            probes.retain(|(role, _)| axes.contains(role));
-            let origin = std::time::Instant::now();
-            let mut at = Vec::with_capacity(probes.len());
-            twin.drive_with(Box::new(move || {
-                // Plant time runs `scale` times faster than the wall, like the stages.
-                let t_ns = (origin.elapsed().as_nanos() as f64 * scale) as u64;
-                at.clear();
-                at.extend(probes.iter().map(|(role, p)| (*role, p())));
-                let (w, status) = plant.sense(&at, t_ns);
-                (w, status & STATUS_SATURATED != 0)
-            }));
-        }
-        netft = Some(twin);
-    }
-    Ok(Served {
-        bound,
-        listing,
-        _zaber: zaber,
-        _smc100: smc100,
-        _modbus: modbus,
-        _netft: netft,
+    Ok(StageTwins {
+        zaber,
+        smc100,
+        modbus,
     })
+}
+
+/// Starts the Net F/T twin when `bound`'s force sensor is one, writing its addresses into
+/// `bound` and a line into `listing`. With a plant in `options` it reads the simulated
+/// elastomer under the stages the protocol moves (their `probes`); without, zero.
+fn start_netft_twin(
+    rig: &RigConfig,
+    bound: &mut RigConfig,
+    options: ServeOptions,
+    listing: &mut Vec<String>,
+    mut probes: Vec<(AxisRole, PositionProbe)>,
+) -> Result<Option<NetFtTwin>, String> {
+    let scale = options.time_scale;
+    let Some(f) = bound.force.as_mut() else {
+        return Ok(None);
+    };
+    if !matches!(f.driver, ForceDriver::NetFt) {
+        return Ok(None);
+    }
+    let twin = NetFtTwin::spawn(NetFtParams {
+        rate_hz: netft_rate_hz(scale),
+        cal: rig::drivers::netft_rdt::CalInfo {
+            force_unit: 2,
+            torque_unit: 4,
+            counts_per_force: 1_000_000 / 7 * 10,
+            counts_per_torque: 1000,
+        },
+        range: f.model.range(),
+        first_seq: (1, 0),
+    })
+    .map_err(|e| format!("force: starting the net f/t twin: {e}"))?;
+    f.address = Some(twin.rdt_addr().to_string());
+    f.calibration_port = Some(twin.calibration_addr().port());
+    listing.push(format!(
+        "force: net f/t twin at {} (calibration port {})",
+        twin.rdt_addr(),
+        twin.calibration_addr().port()
+    ));
+    if let Some((spec, axes)) = options.plant {
+        let mut plant = TwinPlant::new(rig, spec, &axes, options.seed)
+            .map_err(|e| format!("the simulated elastomer: {e}"))?;
+        // Only the stages the protocol moves touch the elastomer.
+        probes.retain(|(role, _)| axes.contains(role));
+        let origin = std::time::Instant::now();
+        let mut at = Vec::with_capacity(probes.len());
+        twin.drive_with(Box::new(move || {
+            // Plant time runs `scale` times faster than the wall, like the stages.
+            let t_ns = (origin.elapsed().as_nanos() as f64 * scale) as u64;
+            at.clear();
+            at.extend(probes.iter().map(|(role, p)| (*role, p())));
+            let (w, status) = plant.sense(&at, t_ns);
+            (w, status & STATUS_SATURATED != 0)
+        }));
+    }
+    Ok(Some(twin))
 }
 
 /// Records per wall second of the Net F/T twin: 40 per simulated second (twice the

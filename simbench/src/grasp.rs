@@ -19,7 +19,7 @@
 //! - **rotation about the pad normal** (a torque disturbance, Fig. 6-24): the same scheme for
 //!   the can's angle, with the gel's twist backbone against the sponge's torsional spring.
 //!
-//! What it leaves out (README, "Grasp trials"): the can's tipping and its liquid; the
+//! What it leaves out (docs/explanation/grasp.md): the can's tipping and its liquid; the
 //! sponge's own viscoelasticity beyond a linear damper; the load's coupling into the gel's
 //! normal force; the cylinder is rigid and the pads stay parallel.
 
@@ -58,6 +58,26 @@ impl GraspParams {
             sponge_twist_per_n: 12.0,
             sponge_damping_n_s_per_mm: 0.004,
             inertia_kg_mm2: m * (3.0 * r * r + h * h) / 12.0,
+        }
+    }
+
+    /// The sponge's tangential backbone per newton of squeeze: linear to its Coulomb limit.
+    fn sponge_shear_backbone(&self) -> Backbone {
+        Backbone {
+            x: vec![0.0, self.sponge_friction / self.sponge_shear_per_n],
+            f: vec![0.0, self.sponge_friction],
+        }
+    }
+
+    /// The sponge's torsional backbone per newton of squeeze.
+    fn sponge_twist_backbone(&self) -> Backbone {
+        // Coulomb torque of the sponge: μN times an effective radius of a third of its side.
+        Backbone {
+            x: vec![
+                0.0,
+                self.sponge_friction * SPONGE_TWIST_RADIUS_MM / self.sponge_twist_per_n,
+            ],
+            f: vec![0.0, self.sponge_friction * SPONGE_TWIST_RADIUS_MM],
         }
     }
 }
@@ -237,19 +257,8 @@ impl Grasp {
         }
         let p = self.params;
         let n = squeeze_n.max(0.0);
-        let kin = gel.kinetic;
-        let sponge_shear = Backbone {
-            x: vec![0.0, p.sponge_friction / p.sponge_shear_per_n],
-            f: vec![0.0, p.sponge_friction],
-        };
-        // Coulomb torque of the sponge: μN times an effective radius of a third of its side.
-        let sponge_twist = Backbone {
-            x: vec![
-                0.0,
-                p.sponge_friction * SPONGE_TWIST_RADIUS_MM / p.sponge_twist_per_n,
-            ],
-            f: vec![0.0, p.sponge_friction * SPONGE_TWIST_RADIUS_MM],
-        };
+        let sponge_shear = p.sponge_shear_backbone();
+        let sponge_twist = p.sponge_twist_backbone();
         let steps = (dt_s / SUBSTEP_S).ceil().max(1.0) as usize;
         let h = dt_s / steps as f64;
         let lift0 = self.last_lift_mm;
@@ -260,80 +269,12 @@ impl Grasp {
             let lift = lift0 + (lift_mm - lift0) * f;
             let pad_v = (lift_mm - lift0) / dt_s;
             let s = (lift - self.lift_origin_mm) - self.z_mm;
-            let f_gel = match (gel.shear, n > 0.0) {
-                (Some(b), true) => {
-                    self.gel.update(s, b, gel.scale, kin);
-                    self.gel.cap(b.limit() * gel.scale, kin)
-                }
-                _ => {
-                    self.gel = FrictionElement::at(s);
-                    0.0
-                }
-            };
-            let f_sponge = if n > 0.0 {
-                self.sponge.update(s, &sponge_shear, n, kin);
-                self.sponge.cap(sponge_shear.limit() * n, kin)
-            } else {
-                self.sponge = FrictionElement::at(s);
-                0.0
-            };
-            let rel_v = pad_v - self.v_mm_s;
-            let damping = if n > 0.0 {
-                p.sponge_damping_n_s_per_mm * rel_v
-            } else {
-                0.0
-            };
+            let (f_gel, f_sponge, damping) = self.shear_forces(s, pad_v, n, gel, &sponge_shear);
             let (dist_n, dist_nmm) = disturbance(f * dt_s);
             let net_n = f_gel + f_sponge + damping + dist_n - weight_n;
-            // Semi-implicit Euler: velocity first, then position with the new velocity.
-            let a = net_n / m * 1e3;
-            let mut v = self.v_mm_s + a * h;
-            let mut z = self.z_mm + v * h;
-            if z <= 0.0 {
-                // Back on the table: a fall if it came down sliding through the grasp.
-                if !self.state.on_table && self.peak_mm > DROP_MM && self.gel.sliding() {
-                    self.state.drops += 1;
-                }
-                z = 0.0;
-                v = 0.0;
-                self.state.on_table = true;
-                self.peak_mm = 0.0;
-            } else {
-                self.state.on_table = false;
-                self.peak_mm = self.peak_mm.max(z);
-            }
-            self.v_mm_s = v;
-            self.z_mm = z;
-            // Rotation about the pad normal: the same balance for the can's angle.
-            let t_gel = match (gel.twist, n > 0.0) {
-                (Some(b), true) => {
-                    self.gel_twist.update(self.theta_rad, b, gel.scale, kin);
-                    self.gel_twist.cap(b.limit() * gel.scale, kin)
-                }
-                _ => 0.0,
-            };
-            let t_sponge = if n > 0.0 {
-                self.sponge_twist
-                    .update(self.theta_rad, &sponge_twist, n, kin);
-                self.sponge_twist.cap(sponge_twist.limit() * n, kin)
-            } else {
-                0.0
-            };
-            let t_damp = p.sponge_damping_n_s_per_mm * 100.0 * self.omega_rad_s;
-            let alpha = (dist_nmm - t_gel - t_sponge - t_damp) / p.inertia_kg_mm2 * 1e3;
-            if n > 0.0 {
-                self.omega_rad_s += alpha * h;
-                self.theta_rad += self.omega_rad_s * h;
-            } else {
-                self.omega_rad_s = 0.0;
-            }
-            self.state.twist_sliding = n > 0.0 && self.gel_twist.sliding();
-            let was_sliding = self.state.gel_sliding;
-            self.state.gel_sliding = self.gel.sliding() && !self.state.on_table;
-            if self.state.gel_sliding && !was_sliding {
-                self.state.slips += 1;
-            }
-            self.state.slip_mm_s = self.v_mm_s - pad_v;
+            self.lift_can(net_n / m * 1e3, h);
+            let (t_gel, t_sponge, t_damp) = self.turn_can(dist_nmm, n, h, gel, &sponge_twist);
+            self.note_slip(n, pad_v);
             let on = n > 0.0;
             self.loads = GraspLoads {
                 gel_n: f_gel,
@@ -359,6 +300,118 @@ impl Grasp {
             self.state.slip_mm_s = 0.0;
         }
         self.last_lift_mm = lift_mm;
+    }
+
+    /// The tangential forces on the can in one substep, N: the gel's and the sponge's
+    /// friction elements at relative displacement `s_mm` (reset when the squeeze `n` is
+    /// gone), and the sponge's damping of the relative speed (`pad_v`, mm/s, the pads').
+    fn shear_forces(
+        &mut self,
+        s_mm: f64,
+        pad_v: f64,
+        n: f64,
+        gel: &GelCurves<'_>,
+        sponge_shear: &Backbone,
+    ) -> (f64, f64, f64) {
+        let kin = gel.kinetic;
+        let f_gel = match (gel.shear, n > 0.0) {
+            (Some(b), true) => {
+                self.gel.update(s_mm, b, gel.scale, kin);
+                self.gel.cap(b.limit() * gel.scale, kin)
+            }
+            _ => {
+                self.gel = FrictionElement::at(s_mm);
+                0.0
+            }
+        };
+        let f_sponge = if n > 0.0 {
+            self.sponge.update(s_mm, sponge_shear, n, kin);
+            self.sponge.cap(sponge_shear.limit() * n, kin)
+        } else {
+            self.sponge = FrictionElement::at(s_mm);
+            0.0
+        };
+        let rel_v = pad_v - self.v_mm_s;
+        let damping = if n > 0.0 {
+            self.params.sponge_damping_n_s_per_mm * rel_v
+        } else {
+            0.0
+        };
+        (f_gel, f_sponge, damping)
+    }
+
+    /// One semi-implicit Euler substep `h_s` of the can's height under acceleration
+    /// `a_mm_s2`, with the table below it (a fall onto it from the air while sliding
+    /// through the grasp is counted as a drop).
+    fn lift_can(&mut self, a_mm_s2: f64, h_s: f64) {
+        // Semi-implicit Euler: velocity first, then position with the new velocity.
+        let mut v = self.v_mm_s + a_mm_s2 * h_s;
+        let mut z = self.z_mm + v * h_s;
+        if z <= 0.0 {
+            // Back on the table: a fall if it came down sliding through the grasp.
+            if !self.state.on_table && self.peak_mm > DROP_MM && self.gel.sliding() {
+                self.state.drops += 1;
+            }
+            z = 0.0;
+            v = 0.0;
+            self.state.on_table = true;
+            self.peak_mm = 0.0;
+        } else {
+            self.state.on_table = false;
+            self.peak_mm = self.peak_mm.max(z);
+        }
+        self.v_mm_s = v;
+        self.z_mm = z;
+    }
+
+    /// One substep `h_s` of the can's rotation about the pad normal under the disturbance
+    /// torque `dist_nmm`: the same balance for its angle. Returns the torques of the gel,
+    /// the sponge and the damping, N·mm.
+    fn turn_can(
+        &mut self,
+        dist_nmm: f64,
+        n: f64,
+        h_s: f64,
+        gel: &GelCurves<'_>,
+        sponge_twist: &Backbone,
+    ) -> (f64, f64, f64) {
+        let p = self.params;
+        let kin = gel.kinetic;
+        let t_gel = match (gel.twist, n > 0.0) {
+            (Some(b), true) => {
+                self.gel_twist.update(self.theta_rad, b, gel.scale, kin);
+                self.gel_twist.cap(b.limit() * gel.scale, kin)
+            }
+            _ => 0.0,
+        };
+        let t_sponge = if n > 0.0 {
+            self.sponge_twist
+                .update(self.theta_rad, sponge_twist, n, kin);
+            self.sponge_twist.cap(sponge_twist.limit() * n, kin)
+        } else {
+            0.0
+        };
+        let t_damp = p.sponge_damping_n_s_per_mm * 100.0 * self.omega_rad_s;
+        let alpha = (dist_nmm - t_gel - t_sponge - t_damp) / p.inertia_kg_mm2 * 1e3;
+        if n > 0.0 {
+            self.omega_rad_s += alpha * h_s;
+            self.theta_rad += self.omega_rad_s * h_s;
+        } else {
+            self.omega_rad_s = 0.0;
+        }
+        (t_gel, t_sponge, t_damp)
+    }
+
+    /// The slip state after a substep: twisting and gross slip on the gel side (a new slip
+    /// counted), and the can's speed relative to the pads moving at `pad_v`, mm/s.
+    fn note_slip(&mut self, n: f64, pad_v: f64) {
+        self.state.twist_sliding = n > 0.0 && self.gel_twist.sliding();
+        let was_sliding = self.state.gel_sliding;
+        self.state.gel_sliding = self.gel.sliding() && !self.state.on_table;
+        if self.state.gel_sliding && !was_sliding {
+            self.state.slips += 1;
+        }
+        self.state.slip_mm_s = self.v_mm_s - pad_v;
     }
 
     /// Elastic part of the gel's tangential displacement (the rest of the relative motion

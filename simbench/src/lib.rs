@@ -9,12 +9,14 @@
 //!
 //! Physics: a contact model precomputed by the bonded-layer solvers of [`mechanics`]
 //! (normal contact, partial slip in shear and twist, surface fields), Prony relaxation,
-//! Masing friction elements, and a GelSight-like renderer.
+//! Masing friction elements, and a GelSight-like renderer — which also draws a frame for a
+//! contact given by hand ([`ContactCamera`]).
 //!
 //! [`Clock`]: rig::Clock
 
 mod axis;
 mod camera;
+pub mod contact_frame;
 mod follow;
 mod force;
 pub mod frame_timing;
@@ -29,6 +31,7 @@ pub mod open;
 
 pub(crate) use axis::SimAxis;
 pub(crate) use camera::SimCamera;
+pub use contact_frame::{ContactCamera, ContactFrame, ContactPose};
 pub(crate) use follow::FollowedAxis;
 pub(crate) use force::{SimDisturber, SimForceSensor};
 pub use mechanics::response::Quality;

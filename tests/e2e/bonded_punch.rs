@@ -147,7 +147,7 @@ fn the_pressed_flat_punches_match_an_independent_finite_element_solution() {
 /// side as near as the nearest) overstates the edges' effect, the circumscribed one (16.27
 /// mm, as far as the corners) understates it. The infinite layer's force is 0.05–2.0 %
 /// (frictionless) and 0.02–0.8 % (stuck) above the pad's (a free side softens it); the field
-/// near the sides is not bounded tightly (README, "Finite pads").
+/// near the sides is not bounded tightly (docs/explanation/simulated-bench.md, "Finite pads").
 #[test]
 fn the_portable_pads_free_sides_soften_its_punch_by_at_most_two_percent() {
     let (layer, material, d_mm) = (presets::PORTABLE_LAYER, presets::portable_material(), 12.5);

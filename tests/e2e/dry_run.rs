@@ -79,7 +79,7 @@ fn every_shipped_protocol_dry_runs_to_completion() {
         }
         // The resolved protocol in the run directory loads again and expands identically.
         let again =
-            experiments::protocol::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml")))
+            experiments::load::load(&dir.join("protocol.yaml"), Some(&dir.join("rig.yaml")))
                 .unwrap();
         assert_eq!(again.compiled.actions, loaded.compiled.actions, "{name}");
     }

@@ -6,7 +6,7 @@
 //! The oracle needs `python3` with `scikit-fem` (`.ci/run` installs it); where it is missing
 //! the rerun prints a visible skip line — unless `GELRIG_REQUIRE_PEERS=1` (set by CI).
 
-use experiments::protocol::load;
+use experiments::load::load;
 use mechanics::finite_strain::{flat_punch_reference, flat_punch_stiffening};
 
 use crate::support::{

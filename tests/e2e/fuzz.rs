@@ -324,7 +324,7 @@ fn mutated_protocols_and_rigs_never_panic_hang_or_run_away() {
         };
         let (p2, r2) = (p.clone(), rig_path.clone());
         let loaded = bounded(Duration::from_secs(5), move || {
-            let l = experiments::protocol::load(&p2, Some(&r2)).ok()?;
+            let l = experiments::load::load(&p2, Some(&r2)).ok()?;
             let plan = l.plan.clone();
             Some((l, plan))
         });

@@ -72,12 +72,9 @@ fn rig_variant(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
     p
 }
 
-/// Findings 7 and 8: every value that validated and then panicked, allocated until killed or
-/// ran away is now a validation error (exit 2) naming the value and its range — fast.
-#[test]
-fn impossible_values_are_refused_before_anything_runs() {
-    let tmp = tempfile::tempdir().unwrap();
-    let d = tmp.path();
+/// The protocols (and rigs) of [`impossible_values_are_refused_before_anything_runs`],
+/// written into `d`, each with the words its refusal must contain.
+fn impossible_cases(d: &Path) -> Vec<(PathBuf, Option<PathBuf>, &'static str)> {
     let nested_repeats = "sequence:\n  - home: {axes: [normal]}\n  - repeat:\n      times: 1000\n      blocks:\n        - repeat:\n            times: 1000\n            blocks:\n              - hold: {duration: 1 s}\n";
     let base = std::fs::read_to_string(variant(d, "base", &[])).unwrap();
     let head = base.split("sequence:").next().unwrap().to_string();
@@ -91,7 +88,7 @@ fn impossible_values_are_refused_before_anything_runs() {
         ),
     )
     .unwrap();
-    let cases: Vec<(PathBuf, Option<PathBuf>, &str)> = vec![
+    vec![
         (
             variant(d, "to", &[("to: 20 %", "to: 1e12 %")]),
             None,
@@ -213,7 +210,15 @@ fn impossible_values_are_refused_before_anything_runs() {
             }),
             "time_scale 1e-300 is outside",
         ),
-    ];
+    ]
+}
+
+/// Findings 7 and 8: every value that validated and then panicked, allocated until killed or
+/// ran away is now a validation error (exit 2) naming the value and its range — fast.
+#[test]
+fn impossible_values_are_refused_before_anything_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cases = impossible_cases(tmp.path());
     for (p, rig, expect) in cases {
         let mut args = vec!["validate".to_string(), p.display().to_string()];
         if let Some(r) = &rig {

@@ -4,6 +4,7 @@
 // Test code: panicking on a broken fixture is the point.
 #![allow(clippy::unwrap_used)]
 
+mod api;
 mod bonded_punch;
 mod bonded_sphere;
 mod dry_run;
@@ -15,6 +16,7 @@ mod force_sensing_can;
 mod force_unseen;
 mod fuzz;
 mod grasp;
+mod guide;
 mod hostile;
 mod live;
 mod material;

@@ -155,7 +155,7 @@ fn the_shipped_fitted_material_recovers_the_gel_it_came_from() {
     let path = root().join("protocols/materials/portable-fitted.yaml");
     let fitted = MaterialFile::read(&path).unwrap();
     let m = &fitted.material;
-    // Fitted (README, "The user's own gel") on dry runs of the SOURCE gel above.
+    // Fitted (docs/explanation/material-fit.md) on dry runs of the SOURCE gel above.
     within(m.youngs_modulus.mpa(), 0.18, 0.02, "E∞");
     for (t, (w, tau)) in m.prony.iter().zip([(0.25, 2.0), (0.15, 20.0)]) {
         within(t.weight, w, 0.02, "a Prony weight");

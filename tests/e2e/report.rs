@@ -128,7 +128,7 @@ fn box_normal_flat_recovers_stiffness_relaxation_and_force_from_field() {
     );
     assert!(lin["r2"].as_f64().unwrap() > 0.999);
     assert_eq!(points, 10, "a flat punch is linear to 20 % of thickness");
-    // Relaxation: the box gel's Prony times (README: 1.5, 15, 60 s), within 5 %.
+    // Relaxation: the box gel's Prony times (docs/explanation/reports.md: 1.5, 15, 60 s), within 5 %.
     let taus: Vec<f64> = s["relaxation"]["shared_tau_s"]
         .as_array()
         .unwrap()
@@ -153,7 +153,7 @@ fn box_normal_flat_recovers_stiffness_relaxation_and_force_from_field() {
     assert!(s.get("slip").is_none());
     assert!(has(&s, "Hysteresis") && !has(&s, "Slip") && has(&s, "Displacement field"));
     // Contact size from the frames: the 9.5 mm punch, every loaded step; the rendered edge is
-    // smoothed by the field grid, so the image reads it 8 % wide (README); the unloaded last
+    // smoothed by the field grid, so the image reads it 8 % wide (docs/explanation/tracking.md); the unloaded last
     // step (a residual imprint) has no size.
     assert!(has(&s, "Contact size"), "{:?}", sections(&s));
     let contact = s["contact"].as_array().expect("a contact table");

@@ -59,7 +59,7 @@ fn adaptive_settling_finds_each_steps_equilibrium_within_a_percent_in_a_fraction
     for (k, ((err, sd, settle, truth, verdict), row)) in rows.iter().zip(&steps).enumerate() {
         settles.push(*settle);
         // Unloaded to the contact origin the punch leaves the sunk gel, which recovers into
-        // it later: no record of the step shows that (README, "Choosing a settle rule").
+        // it later: no record of the step shows that (docs/reference/protocol.md, "Choosing a settle rule").
         if row["position"].parse::<f64>().unwrap() <= 0.0 {
             continue;
         }

@@ -4,8 +4,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+use experiments::load::{Loaded, load};
 use experiments::plan::Plan;
-use experiments::protocol::{Loaded, load};
 use runner::{Cancel, Launch, RunOutcome, run};
 
 /// The workspace root.
@@ -271,7 +271,7 @@ pub(crate) fn run_on_real_rig(
     p: &Path,
     meanwhile: impl FnOnce(std::path::PathBuf) + Send + 'static,
 ) -> runner::RunOutcome {
-    let loaded = experiments::protocol::load(p, Some(rig)).unwrap_or_else(|d| {
+    let loaded = experiments::load::load(p, Some(rig)).unwrap_or_else(|d| {
         panic!(
             "{}",
             d.iter()

@@ -22,7 +22,7 @@ fn frames_are_stamped_at_their_exposure_and_carry_its_force() {
     let text = shipped_text("lifting-can").replace("times: 10", "times: 2");
     let p = tmp.path().join("protocol.yaml");
     std::fs::write(&p, text).unwrap();
-    let loaded = experiments::protocol::load(&p, Some(&rig_path)).unwrap();
+    let loaded = experiments::load::load(&p, Some(&rig_path)).unwrap();
     let (o, _) = run_virtual(&loaded, tmp.path(), 3, None);
     assert_eq!(
         o.status,

@@ -224,7 +224,7 @@ fn a_role_missing_from_the_rig_is_named_with_the_fix() {
     let text = shipped_text("box-shear-flat");
     let p = dir.path().join("protocol.yaml");
     std::fs::write(&p, &text).unwrap();
-    let diags = experiments::protocol::load(&p, Some(&rig_path)).unwrap_err();
+    let diags = experiments::load::load(&p, Some(&rig_path)).unwrap_err();
     let d = diags
         .iter()
         .find(|d| d.message.contains("binds no `shear` axis"))
@@ -248,7 +248,7 @@ fn a_role_missing_from_the_rig_is_named_with_the_fix() {
         .collect();
     std::fs::write(&rig_path, rig_text).unwrap();
     let p = protocol("box-normal-flat");
-    let diags = experiments::protocol::load(&p, Some(&rig_path)).unwrap_err();
+    let diags = experiments::load::load(&p, Some(&rig_path)).unwrap_err();
     assert!(
         diags.iter().any(|d| d.message.contains("needs a camera")),
         "{diags:#?}"
@@ -299,7 +299,7 @@ fn malformed_input_never_panics() {
             .unwrap_or_else(|| panic!("{text:?} should not load"));
         assert!(diags.iter().any(|d| d.is_error()), "{text:?}");
     }
-    let missing = experiments::protocol::load(&dir.path().join("nope.yaml"), None).unwrap_err();
+    let missing = experiments::load::load(&dir.path().join("nope.yaml"), None).unwrap_err();
     assert!(
         missing[0].message.contains("cannot read the protocol"),
         "{missing:?}"

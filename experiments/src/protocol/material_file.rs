@@ -175,6 +175,8 @@ impl MaterialFile {
 
 #[cfg(test)]
 mod tests {
+    use std::path::PathBuf;
+
     use super::*;
 
     fn shipped() -> PathBuf {

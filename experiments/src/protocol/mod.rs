@@ -1,84 +1,25 @@
-//! Protocols: schema, loading, checking and expansion.
+//! Protocols: schema, parsing, checking and expansion.
 //!
 //! Loading follows dora's parse → resolve → check split: [`schema`] parses (serde, unknown
-//! keys denied, units checked), [`load`] resolves the rig file and the sensor defaults,
-//! and [`compile`] checks everything that needs both and expands the sequence.
+//! keys denied, units checked), [`crate::load`] resolves the rig file and the sensor
+//! defaults, and [`compile`] checks everything that needs both and expands the sequence.
 
 pub mod compile;
 pub mod material;
 pub mod material_file;
-mod overrides;
 pub mod schema;
 pub mod shipped;
 pub mod source;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rig::config::RigConfig;
 use simbench::{MarkerLayout, PlantSpec};
 
 use crate::diag::{Diagnostic, Severity};
-use compile::{Budget, Compiled};
+use compile::Compiled;
 use schema::{IndenterSpec, Markers, Protocol};
 use source::read;
-
-/// A protocol with its rig, checked and expanded.
-#[derive(Debug, Clone)]
-pub struct Loaded {
-    /// The protocol file.
-    pub path: PathBuf,
-    /// Its text, exactly as read.
-    pub text: String,
-    /// Parsed, with sensor defaults filled in.
-    pub protocol: Protocol,
-    /// The rig file used.
-    pub rig_path: PathBuf,
-    /// The rig's text.
-    pub rig_text: String,
-    /// The parsed rig.
-    pub rig: RigConfig,
-    /// The expanded run.
-    pub compiled: Compiled,
-    /// Its plan — steps, durations, data — computed once as the protocol is checked (its
-    /// data budget is part of the check) and carried to the runner and the commands.
-    pub plan: crate::plan::Plan,
-    /// Warnings (errors prevent a `Loaded`).
-    pub warnings: Vec<Diagnostic>,
-}
-
-impl Loaded {
-    /// The real (not simulated in-process) devices this protocol opens, by role. Any one of
-    /// them puts the run on the monotonic clock: a real stage or sensor cannot be driven in
-    /// virtual time.
-    pub fn real_devices(&self) -> Vec<String> {
-        use rig::config::{AxisDriver, CameraDriver, DisturberDriver, ForceDriver};
-        let needs = &self.compiled.needs;
-        let mut real = Vec::new();
-        for role in &needs.axes {
-            if self
-                .rig
-                .axes
-                .get(role)
-                .is_some_and(|a| !matches!(a.driver, AxisDriver::Sim))
-            {
-                real.push(role.to_string());
-            }
-        }
-        let force = self.rig.force.as_ref();
-        if needs.force && force.is_some_and(|f| !matches!(f.driver, ForceDriver::Sim)) {
-            real.push("force".into());
-        }
-        let camera = self.rig.camera.as_ref();
-        if needs.camera && camera.is_some_and(|c| !matches!(c.driver, CameraDriver::Sim)) {
-            real.push("camera".into());
-        }
-        let disturber = self.rig.disturber.as_ref();
-        if needs.disturber && disturber.is_some_and(|d| !matches!(d.driver, DisturberDriver::Sim)) {
-            real.push("disturber".into());
-        }
-        real
-    }
-}
 
 /// Top-level keys of a protocol file.
 const PROTOCOL_KEYS: &[&str] = &[
@@ -206,254 +147,13 @@ fn relocate(d: Diagnostic, file: &Path, text: &str, path: &rig::config::YamlPath
     at
 }
 
-/// Reads, parses, resolves and checks `protocol_path` against its rig (or `rig_override`),
-/// within the default [`Budget`]. Returns every error found, located, or the loaded
-/// protocol and its warnings.
-pub fn load(protocol_path: &Path, rig_override: Option<&Path>) -> Result<Loaded, Vec<Diagnostic>> {
-    load_with(protocol_path, rig_override, &Budget::default())
-}
-
-/// [`load`] within `budget`: a protocol that would expand into more steps, or write more
-/// bytes by its plan's estimate, is refused with the numbers.
-pub fn load_with(
-    protocol_path: &Path,
-    rig_override: Option<&Path>,
-    budget: &Budget,
-) -> Result<Loaded, Vec<Diagnostic>> {
-    let text = read(protocol_path, "the protocol")?;
-    load_text(protocol_path, text, rig_override, budget)
-}
-
-/// Values given on the command line in place of the protocol's own.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Overrides {
-    /// `KEY=VALUE` pairs: a dotted path into the protocol (`indenter.diameter`,
-    /// `sequence.3.stepped.step`) and a YAML value (`10 mm`, `{fixed: 60 s}`).
-    pub set: Vec<String>,
-    /// The run's name in place of the protocol's.
-    pub name: Option<String>,
-}
-
-/// [`load_with`] with `overrides` applied to the protocol's text first. An edited protocol is
-/// recorded as run (its `protocol.yaml`) and gets a name of its own: `--name`, or the
-/// protocol's name with a hash of the overrides (`box-normal-flat-3f9a1c`), so its runs are
-/// told apart from the unedited protocol's. Diagnostics then refer to the edited text.
-pub fn load_with_overrides(
-    protocol_path: &Path,
-    rig_override: Option<&Path>,
-    budget: &Budget,
-    overrides: &Overrides,
-) -> Result<Loaded, Vec<Diagnostic>> {
-    if overrides == &Overrides::default() {
-        return load_with(protocol_path, rig_override, budget);
-    }
-    let text = read(protocol_path, "the protocol")?;
-    let edited = overrides::apply(&text, overrides).map_err(|(message, fix)| {
-        vec![Diagnostic::at_path(
-            protocol_path,
-            &text,
-            &rig::config::YamlPath::root(),
-            Severity::Error,
-            message,
-            fix,
-        )]
-    })?;
-    load_text(protocol_path, edited, rig_override, budget)
-}
-
-/// Parses, resolves and checks protocol `text` read from `protocol_path` (relative paths in
-/// it resolve against that file's folder).
-fn load_text(
-    protocol_path: &Path,
-    text: String,
-    rig_override: Option<&Path>,
-    budget: &Budget,
-) -> Result<Loaded, Vec<Diagnostic>> {
-    let mut protocol = parse(protocol_path, &text).map_err(|d| vec![*d])?;
-    read_material(protocol_path, &text, &mut protocol).map_err(|d| vec![*d])?;
-    protocol.sensor.resolve_defaults();
-    let rig_path = match (rig_override, &protocol.rig) {
-        (Some(r), _) => r.to_path_buf(),
-        (None, Some(r)) => protocol_path.parent().unwrap_or(Path::new(".")).join(r),
-        (None, None) => {
-            return Err(vec![Diagnostic::at_path(
-                protocol_path,
-                &text,
-                &rig::config::YamlPath::root().key("name"),
-                Severity::Error,
-                "this protocol names no rig",
-                "add `rig: rigs/sim.yaml` (relative to the protocol) or pass `--rig FILE`",
-            )]);
-        }
-    };
-    if rig_override.is_none() && !rig_path.exists() {
-        // A protocol copied away from its `rigs/` folder: say where `rig:` led, at the line.
-        let suggest = shipped::sim_rig()
-            .map(|p| {
-                let shown = std::env::current_dir()
-                    .ok()
-                    .and_then(|cwd| p.strip_prefix(&cwd).ok().map(Path::to_path_buf))
-                    .unwrap_or(p);
-                format!("pass `--rig {}` (the simulated rig), or ", shown.display())
-            })
-            .unwrap_or_default();
-        return Err(vec![Diagnostic::at_path(
-            protocol_path,
-            &text,
-            &rig::config::YamlPath::root().key("rig"),
-            Severity::Error,
-            format!(
-                "`rig: {}` resolves to {}, which does not exist (a rig path is relative to the \
-                 protocol's folder)",
-                protocol.rig.as_deref().unwrap_or_default(),
-                std::path::absolute(&rig_path)
-                    .unwrap_or_else(|_| rig_path.clone())
-                    .display()
-            ),
-            format!("{suggest}correct `rig:` to point at a rig file"),
-        )]);
-    }
-    let rig_text = read(&rig_path, "the rig file")?;
-    source::mapping(&rig_path, &rig_text, "a rig file", RIG_KEYS)?;
-    let rig = RigConfig::from_yaml_str(&rig_text)
-        .map_err(|e| vec![Diagnostic::from_yaml_error(&rig_path, &rig_text, &e)])?;
-    let mut diags: Vec<Diagnostic> = rig
-        .check()
-        .into_iter()
-        .map(|i| {
-            Diagnostic::at_path(
-                &rig_path,
-                &rig_text,
-                &i.path,
-                Severity::Error,
-                i.message,
-                i.fix,
-            )
-        })
-        .collect();
-    // A protocol cannot be checked against a rig that is itself wrong (reversed travel,
-    // absurd speeds): report the rig first.
-    if !diags.is_empty() {
-        return Err(diags);
-    }
-    let compiled = compile::compile_with(&protocol, &rig, budget);
-    if let Some(rel) = &protocol.record.gelsight_force {
-        let at = rig::config::YamlPath::root()
-            .key("record")
-            .key("gelsight_force");
-        let file = protocol_path.parent().unwrap_or(Path::new(".")).join(rel);
-        let frames = compiled.actions.iter().any(
-            |a| matches!(&a.kind, compile::ActionKind::StreamsBegin(r) if r.frames_hz.is_some()),
-        );
-        if !file.is_file() {
-            diags.push(Diagnostic::at_path(
-                protocol_path,
-                &text,
-                &at,
-                Severity::Error,
-                format!("the sensor file {} does not exist", file.display()),
-                "give the SENSOR.yaml written by `gelrig calibrate --out`, relative to this protocol",
-            ));
-        } else if !frames {
-            diags.push(Diagnostic::at_path(
-                protocol_path,
-                &text,
-                &at,
-                Severity::Error,
-                "the GelSight's force is read from tracked frames, and this protocol records none",
-                "record continuous frames (`record: {frames: 25 Hz, blocks: …}`) where the force \
-                 is wanted",
-            ));
-        }
-    }
-    for i in &compiled.issues {
-        let (file, src) = if i.in_rig {
-            (&rig_path, &rig_text)
-        } else {
-            (&protocol_path.to_path_buf(), &text)
-        };
-        diags.push(Diagnostic::at_path(
-            file,
-            src,
-            &i.path,
-            i.severity,
-            i.message.clone(),
-            i.fix.clone(),
-        ));
-    }
-    if diags.iter().any(Diagnostic::is_error) {
-        return Err(diags);
-    }
-    if let Some(d) = too_fine_to_simulate(protocol_path, &text, &protocol, &compiled, &rig) {
-        diags.push(d);
-        return Err(diags);
-    }
-    let planned = crate::plan::plan(&protocol, &compiled, &rig);
-    if planned.bytes.max > budget.max_bytes as f64 {
-        diags.push(Diagnostic::at_path(
-            protocol_path,
-            &text,
-            &rig::config::YamlPath::root().key("sequence"),
-            Severity::Error,
-            format!(
-                "the run would write up to {} ({} frames, {} force rows over {}), over the data budget of {}",
-                crate::plan::human_bytes(planned.bytes.max),
-                rig::units::fmt_value(planned.frames.max.round()),
-                rig::units::fmt_value(planned.force_rows.max.round()),
-                crate::plan::human_duration(planned.duration_s.max),
-                crate::plan::human_bytes(budget.max_bytes as f64)
-            ),
-            "check settle times, frame counts and stream rates; if the run really is that big, pass `--max-data SIZE` (e.g. `--max-data 500GB`)",
-        ));
-        return Err(diags);
-    }
-    Ok(Loaded {
-        path: protocol_path.to_path_buf(),
-        text,
-        protocol,
-        rig_path,
-        rig_text,
-        rig,
-        compiled,
-        plan: planned,
-        warnings: diags,
-    })
-}
-
-/// On a rig that simulates the elastomer, an indenter whose contact model would need a grid
-/// finer than the simulator solves on (a 0.03 mm sphere on a 4.2 mm layer) is refused here,
-/// before a run spends minutes building it or runs out of memory.
-fn too_fine_to_simulate(
-    path: &Path,
-    text: &str,
-    protocol: &Protocol,
-    compiled: &Compiled,
-    rig: &RigConfig,
-) -> Option<Diagnostic> {
-    use mechanics::response::{ContactModel, MAX_GRID_SIDE};
-    if !rig.uses_sim() {
-        return None;
-    }
-    let spec = plant_spec(protocol, compiled).ok()?;
-    let side = ContactModel::grid_side(&spec.contact, &spec.quality, compiled.needs.camera);
-    (side > MAX_GRID_SIDE).then(|| {
-        Diagnostic::at_path(
-            path,
-            text,
-            &rig::config::YamlPath::root().key("indenter"),
-            Severity::Error,
-            format!(
-                "the simulated bench would solve this contact on a grid {side} cells wide (at most {MAX_GRID_SIDE}): the indenter is too small for the {} mm layer",
-                rig::units::fmt_value(spec.contact.layer.thickness_mm)
-            ),
-            "use a larger indenter, or run on a real rig",
-        )
-    })
-}
-
 /// Replaces `sensor.material: {from: FILE}` by the file's values (the run directory's
 /// `protocol.yaml` then carries them, and reads back without the file).
-fn read_material(path: &Path, text: &str, protocol: &mut Protocol) -> Result<(), Box<Diagnostic>> {
+pub(crate) fn read_material(
+    path: &Path,
+    text: &str,
+    protocol: &mut Protocol,
+) -> Result<(), Box<Diagnostic>> {
     let Some(schema::MaterialEntry::From(from)) = &protocol.sensor.material else {
         return Ok(());
     };
@@ -494,7 +194,7 @@ pub fn plant_spec(p: &Protocol, compiled: &Compiled) -> Result<PlantSpec, String
     let m = match &sensor.material {
         None => schema::defaults::material(kind),
         Some(entry) => entry.values().cloned().ok_or_else(|| {
-            "the protocol's `material: {from: …}` was not read (load the protocol with              `protocol::load`)"
+            "the protocol's `material: {from: …}` was not read (load the protocol with `experiments::load::load`)"
                 .to_string()
         })?,
     };

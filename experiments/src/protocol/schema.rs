@@ -340,7 +340,7 @@ pub enum Settle {
     /// Until the signal's rate of change stays below a threshold over a window.
     Rate(RateSettle),
     /// Until the equilibrium value F∞, fitted to the relaxation as it goes, is known within
-    /// a tolerance (with an honest uncertainty; README "Choosing a settle rule").
+    /// a tolerance (with an honest uncertainty; docs/reference/protocol.md, "Choosing a settle rule").
     Adaptive(AdaptiveSettle),
 }
 

@@ -116,7 +116,7 @@ pub fn export_mcap(run_dir: &Path, out: &Path) -> Result<Exported, ExportError> 
             w.attach(name, bytes).map_err(m)?;
         }
     }
-    if let Ok(manifest) = crate::write::read_manifest(run_dir) {
+    if let Ok(manifest) = crate::manifest::read_manifest(run_dir) {
         w.run_metadata(manifest.headline()).map_err(m)?;
     }
     let messages = w.finish().map_err(m)?;

@@ -21,7 +21,6 @@
 
 mod files;
 mod frame_writer;
-mod manifest;
 mod mcap_live;
 mod reopen;
 pub mod rows;
@@ -31,10 +30,12 @@ use std::path::{Path, PathBuf};
 
 use records::{ForceSample, Frame, SimTruth, Wrench};
 
+pub use crate::manifest::{
+    DeviceRecord, Manifest, Segment, Status, is_locked, read_manifest, run_file,
+};
 pub use files::write_atomic;
 use files::{Appender, CsvFile, Reserve, io};
 use frame_writer::FrameWriter;
-pub use manifest::{DeviceRecord, Manifest, Segment, Status, is_locked, read_manifest, run_file};
 use rows::{AxesRow, ForceRow, SimStepRow, round6};
 pub use rows::{FrameForce, StepRow, TactileRow};
 

@@ -19,7 +19,7 @@
 //! edge the field's steep rise is blurred by the markers' size and the centre's error;
 //! farther out the field is small. On a small pad 2a reaches toward its free sides, where the
 //! infinite layer's field is off (the portable pad's by up to 7 % at 1.25a and more beyond;
-//! README, "Finite pads"): the fit says so in its provenance ([`FieldNu::near_sides`]).
+//! docs/explanation/simulated-bench.md, "Finite pads"): the fit says so in its provenance ([`FieldNu::near_sides`]).
 //!
 //! What it rests on: the field of the pressing model the rig names. A punch face that sticks
 //! (the default; `contact: {pressing_friction: false}` in the rig file for a frictionless one)

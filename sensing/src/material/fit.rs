@@ -16,9 +16,10 @@ use analysis::material_fit::{MaterialFit, PressRecord, fit_material};
 use mechanics::response::ModelSpec;
 use rig::units::{Duration, Pressure};
 
-use super::field_nu::FieldRecord;
 use super::file::{FORMAT, FittedRun, MaterialFile, TermUncertainty, Uncertainty, VERSION};
 use super::law::{ForceLaw, interp, law_scale};
+use super::nu_choice::{chosen_nu, distinct_sizes, held_reason, nu_checks, nu_from_fields};
+use super::run::{FittedNu, PRESSING_AXES, Run};
 use crate::run_data::{RunData, StepRow, read_run_tables};
 use experiments::protocol::schema::{MaterialSpec, PronySpec};
 
@@ -42,26 +43,6 @@ fn unfit(path: &Path, detail: impl Into<String>, fix: impl Into<String>) -> FitE
     }
 }
 
-/// One run, read and understood.
-struct Run {
-    dir: PathBuf,
-    data: RunData,
-    /// The material its protocol assumed.
-    assumed: MaterialSpec,
-    /// The sensor's kind (`box`, `portable`).
-    sensor: String,
-    /// Each step's move speed, axis unit/s (the protocol's).
-    speeds: std::collections::BTreeMap<u32, f64>,
-    /// The speed of the approach that found the contact on a pressing axis, mm/s.
-    approach_speed: Option<f64>,
-    /// The run's indenter and layer, whose elastic force law is built at any ν.
-    law: ForceLaw,
-    /// The indenter, as its protocol gives it: runs of different indenters tell ν.
-    indenter: String,
-    /// The camera's view on the gel, mm (width, height): the image scale of its frames.
-    view_mm: (f64, f64),
-}
-
 /// Fits a material to `runs` (run directories made by `gelrig run`).
 pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
     let Some(first) = runs.first() else {
@@ -71,6 +52,92 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
             "name the runs: gelrig fit-material runs/A runs/B --out material.yaml",
         ));
     };
+    let read = read_runs(runs)?;
+    let (pressing, nu) = pressing_runs(&read, first)?;
+    let records: Vec<PressRecord> = pressing.iter().map(|(_, p)| p.clone()).collect();
+    let laws: Vec<&ForceLaw> = pressing.iter().map(|(k, _)| &read[*k].law).collect();
+    let no_model = || unfit(first, "a run's indenter has no model", "report this");
+    let tables_at = |nu: f64| -> Option<Vec<(Vec<f64>, Vec<f64>)>> {
+        laws.iter().map(|l| l.table(nu)).collect()
+    };
+    let joint = |tables: &[(Vec<f64>, Vec<f64>)]| {
+        fit_material(&records, &|k, d| interp(&tables[k], d)).ok_or_else(|| {
+            unfit(
+                first,
+                "the pressing records cannot be fitted (too short, or no relaxation model fits)",
+                "fit on runs whose steps hold at least 10 s with a force record throughout",
+            )
+        })
+    };
+    let tables0 = tables_at(nu).ok_or_else(no_model)?;
+    // Flat circular punches of two sizes or more tell ν; one indenter's record cannot, and a
+    // curved indenter's law changes its shape with ν while its contact offset trades with
+    // the modulus (a 9.5 mm punch and a 12.68 mm sphere told 0.483 for a gel of 0.49 on dry
+    // runs).
+    let flat: Vec<(usize, f64)> = (0..pressing.len())
+        .filter_map(|j| Some((j, laws[j].flat_circle_a_over_h()?)))
+        .collect();
+    let sizes = distinct_sizes(&flat);
+    let poisson = (sizes >= 2).then(|| {
+        let recs: Vec<PressRecord> = flat.iter().map(|&(j, _)| records[j].clone()).collect();
+        let tabs: Vec<(Vec<f64>, Vec<f64>)> =
+            flat.iter().map(|&(j, _)| tables0[j].clone()).collect();
+        super::poisson::fit_poisson(&recs, &tabs, nu, sizes, &|k, nu| laws[flat[k].0].table(nu))
+    });
+    let fit0 = joint(&tables0);
+    let offsets: Vec<f64> = (0..pressing.len())
+        .map(|j| {
+            fit0.as_ref()
+                .ok()
+                .and_then(|f| f.offsets_mm.get(j))
+                .map_or(0.0, |o| o.value)
+        })
+        .collect();
+    let (field, field_notes) = nu_from_fields(&read, &pressing, &flat, &laws, &offsets);
+    let chosen = chosen_nu(&field, &poisson, &laws);
+    let mut checks = nu_checks(&chosen, &field, &poisson, &field_notes);
+    let mut refit_failed = None;
+    let (fit, nu_fit) = match chosen {
+        Some(c) => {
+            // The whole record again at the fitted ν; should it not fit there, ν stays held.
+            match tables_at(c.nu).map(|t| joint(&t)) {
+                Some(Ok(fit)) => {
+                    let per_nu = c
+                        .per_nu
+                        .unwrap_or_else(|| log_modulus_per_nu(&laws, &records, &fit, c.nu));
+                    (fit, Some((c, per_nu)))
+                }
+                _ => {
+                    refit_failed = Some(format!(
+                        "ν {:.4} was told {}, but the whole record does not fit there",
+                        c.nu, c.how
+                    ));
+                    checks.clear();
+                    (fit0?, None)
+                }
+            }
+        }
+        None => (fit0?, None),
+    };
+    let friction = friction_of(&read);
+    let held_why = held_reason(&read, &pressing, &field, &poisson, refit_failed);
+    Ok(file(
+        &read,
+        &pressing,
+        &fit,
+        friction,
+        Poisson {
+            nu: nu_fit.as_ref().map_or(nu, |p| p.0.nu),
+            assumed: nu,
+            fitted: nu_fit,
+            held_why,
+            checks,
+        },
+    ))
+}
+
+/// Every run read, all of one sensor's gel.
+fn read_runs(runs: &[PathBuf]) -> Result<Vec<Run>, FitError> {
     let mut read = Vec::new();
     for dir in runs {
         read.push(read_one(dir)?);
@@ -87,8 +154,14 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
             "fit each sensor's gel on its own runs",
         ));
     }
-    // A resumed run was unloaded, re-homed and pressed again between its segments: its
-    // depth history is not the step log's.
+    Ok(read)
+}
+
+/// The runs that press the gel in held steps with a force record (by index into `read`,
+/// with their record), and the ν their protocols all assume. A resumed run was unloaded,
+/// re-homed and pressed again between its segments: its depth history is not the step
+/// log's, and it does not count.
+fn pressing_runs(read: &[Run], first: &Path) -> Result<(Vec<(usize, PressRecord)>, f64), FitError> {
     let pressing: Vec<(usize, PressRecord)> = read
         .iter()
         .enumerate()
@@ -118,215 +191,8 @@ pub fn fit(runs: &[PathBuf]) -> Result<MaterialFile, FitError> {
             "fit runs of one gel together",
         ));
     }
-    let records: Vec<PressRecord> = pressing.iter().map(|(_, p)| p.clone()).collect();
-    let laws: Vec<&ForceLaw> = pressing.iter().map(|(k, _)| &read[*k].law).collect();
-    let no_model = || unfit(first, "a run's indenter has no model", "report this");
-    let tables_at = |nu: f64| -> Option<Vec<(Vec<f64>, Vec<f64>)>> {
-        laws.iter().map(|l| l.table(nu)).collect()
-    };
-    let joint = |tables: &[(Vec<f64>, Vec<f64>)]| {
-        fit_material(&records, &|k, d| interp(&tables[k], d)).ok_or_else(|| {
-            unfit(
-                first,
-                "the pressing records cannot be fitted (too short, or no relaxation model fits)",
-                "fit on runs whose steps hold at least 10 s with a force record throughout",
-            )
-        })
-    };
-    let tables0 = tables_at(nu).ok_or_else(no_model)?;
-    // Flat circular punches of two sizes or more tell ν; one indenter's record cannot, and a
-    // curved indenter's law changes its shape with ν while its contact offset trades with
-    // the modulus (a 9.5 mm punch and a 12.68 mm sphere told 0.483 for a gel of 0.49 on dry
-    // runs). Sizes closer than SIZES_APART in a/h part too little with ν to count as two.
-    let flat: Vec<(usize, f64)> = (0..pressing.len())
-        .filter_map(|j| Some((j, laws[j].flat_circle_a_over_h()?)))
-        .collect();
-    let sizes = {
-        let mut a: Vec<f64> = flat.iter().map(|f| f.1).collect();
-        a.sort_by(f64::total_cmp);
-        let mut n = usize::from(!a.is_empty());
-        let mut last = a.first().copied().unwrap_or(0.0);
-        for &x in &a {
-            if x > last * SIZES_APART {
-                n += 1;
-                last = x;
-            }
-        }
-        n
-    };
-    let poisson = (sizes >= 2).then(|| {
-        let recs: Vec<PressRecord> = flat.iter().map(|&(j, _)| records[j].clone()).collect();
-        let tabs: Vec<(Vec<f64>, Vec<f64>)> =
-            flat.iter().map(|&(j, _)| tables0[j].clone()).collect();
-        super::poisson::fit_poisson(&recs, &tabs, nu, sizes, &|k, nu| laws[flat[k].0].table(nu))
-    });
-    // The flat circular punches' marker fields tell ν from one run: first the record at ν₀
-    // for each run's contact offset (a flat punch's hardly moves with ν), then the fields
-    // at the depths past it. Runs without frames give none; a run whose frames give no
-    // field says why.
-    let fit0 = joint(&tables0);
-    let mut field_notes: Vec<String> = Vec::new();
-    let mut field_recs: Vec<FieldRecord> = Vec::new();
-    for &(j, _) in &flat {
-        let run = &read[pressing[j].0];
-        if run.data.frames.len() < 2 {
-            continue;
-        }
-        let offset = fit0
-            .as_ref()
-            .ok()
-            .and_then(|f| f.offsets_mm.get(j))
-            .map_or(0.0, |o| o.value);
-        let rec = crate::run_data::read_run(&run.dir)
-            .map_err(|e| format!("its frames do not track ({e})"))
-            .and_then(|data| {
-                super::field_nu::field_record(
-                    &data,
-                    &laws[j].spec,
-                    run.view_mm,
-                    PRESSING_AXES[0],
-                    offset,
-                )
-            });
-        match rec {
-            Ok(r) => field_recs.push(r),
-            Err(why) => field_notes.push(format!("{}: {why}", run.dir.display())),
-        }
-    }
-    let field = match (field_recs.is_empty(), field_notes.is_empty()) {
-        (false, _) => Some(super::field_nu::fit_nu(&field_recs)),
-        (true, false) => Some(Err(field_notes.join("; "))),
-        (true, true) => None,
-    };
-    let pressing_model = if laws.iter().any(|l| l.spec.pressing_friction) {
-        "the punch face stuck (pressed with friction: the rig file's `contact:` or `sim:` \
-         `pressing_friction`, default true)"
-    } else {
-        "a frictionless punch face (the rig file's `pressing_friction: false`)"
-    };
-    let chosen: Option<FittedNu> = match (&field, &poisson) {
-        (Some(Ok(f)), _) => Some(FittedNu {
-            nu: f.nu,
-            sd: f.sd,
-            per_nu: None,
-            how: format!(
-                "from the marker field around {} flat punch run(s) ({} marker readings from \
-                 {} to {} punch radii, rms misfit {:.2} µm; the field independent of the \
-                 modulus, of the contact model with {pressing_model}; the ± the markers' noise \
-                 and {} of the fit's own in quadrature{})",
-                f.runs,
-                f.points,
-                f.annulus.0,
-                f.annulus.1,
-                f.rms_um,
-                super::field_nu::SD_FLOOR,
-                if f.near_sides {
-                    "; the markers used reach within two layer thicknesses of the pad's \
-                     sides, where a real pad's field departs from the infinite layer's"
-                } else {
-                    ""
-                }
-            ),
-        }),
-        (_, Some(Ok(p))) => Some(FittedNu {
-            nu: p.nu,
-            sd: p.sd,
-            per_nu: Some(p.log_modulus_per_nu),
-            how: format!(
-                "where the apparent moduli of {} flat punches' pressing runs agree (each run \
-                 fitted on its own)",
-                p.indenters
-            ),
-        }),
-        _ => None,
-    };
-    // The method not taken, where it told ν or was tried: the fitted ν's check.
-    let mut checks = Vec::new();
-    if let (Some(_), Some(Ok(_)), Some(Ok(p))) = (&chosen, &field, &poisson) {
-        checks.push(format!(
-            "poisson_ratio check: the two punch sizes' forces agree at {:.4} ± {:.4}",
-            p.nu, p.sd
-        ));
-    }
-    if let (Some(_), Some(Err(why))) = (&chosen, &field) {
-        checks.push(format!(
-            "poisson_ratio check: the marker field did not tell ν: {why}"
-        ));
-    } else if let (Some(Ok(_)), false) = (&field, field_notes.is_empty()) {
-        checks.push(format!(
-            "poisson_ratio check: runs whose frames gave no field: {}",
-            field_notes.join("; ")
-        ));
-    }
-    let mut refit_failed = None;
-    let (fit, nu_fit) = match chosen {
-        Some(c) => {
-            // The whole record again at the fitted ν; should it not fit there, ν stays held.
-            match tables_at(c.nu).map(|t| joint(&t)) {
-                Some(Ok(fit)) => {
-                    let per_nu = c
-                        .per_nu
-                        .unwrap_or_else(|| log_modulus_per_nu(&laws, &records, &fit, c.nu));
-                    (fit, Some((c, per_nu)))
-                }
-                _ => {
-                    refit_failed = Some(format!(
-                        "ν {:.4} was told {}, but the whole record does not fit there",
-                        c.nu, c.how
-                    ));
-                    checks.clear();
-                    (fit0?, None)
-                }
-            }
-        }
-        None => (fit0?, None),
-    };
-    let friction = friction_of(&read);
-    let kinds = {
-        let mut all: Vec<&str> = pressing
-            .iter()
-            .map(|(k, _)| read[*k].indenter.as_str())
-            .collect();
-        all.sort_unstable();
-        all.dedup();
-        all.len()
-    };
-    let field_why = match &field {
-        Some(Err(why)) => format!("; the field: {why}"),
-        _ => String::new(),
-    };
-    let held_why = match &poisson {
-        _ if refit_failed.is_some() => refit_failed.unwrap_or_default(),
-        Some(Err(why)) => format!("{why}{field_why}"),
-        _ if kinds >= 2 => format!(
-            "only flat circular punches tell ν: by their field around them where frames \
-             were recorded, or by the forces of two sizes (a/h 15 % apart or more); a curved \
-             indenter's force law changes its shape with ν and its contact offset trades with \
-             the modulus{field_why}"
-        ),
-        _ => format!(
-            "a force record of one indenter cannot tell E from ν; the marker field around a \
-             flat circular punch can, and so can pressing runs of two flat punch sizes{field_why}"
-        ),
-    };
-    Ok(file(
-        &read,
-        &pressing,
-        &fit,
-        friction,
-        Poisson {
-            nu: nu_fit.as_ref().map_or(nu, |p| p.0.nu),
-            assumed: nu,
-            fitted: nu_fit,
-            held_why,
-            checks,
-        },
-    ))
+    Ok((pressing, nu))
 }
-
-/// Flat punches whose a/h differ by less than this factor count as one size for ν: their
-/// force ratio moves too little with ν for the model's own error to stay out of it.
-const SIZES_APART: f64 = 1.15;
 
 /// Poisson's ratio: fitted (with d ln E∞/dν at it), or held at the protocols' value and
 /// why.
@@ -337,15 +203,6 @@ struct Poisson {
     held_why: String,
     /// The other method's ν where both told it, or why the field did not.
     checks: Vec<String>,
-}
-
-/// ν as fitted, and how.
-struct FittedNu {
-    nu: f64,
-    sd: f64,
-    /// d ln E∞/dν, where the method found it (the forces' moduli); else from the laws.
-    per_nu: Option<f64>,
-    how: String,
 }
 
 /// d ln E∞/dν at `nu`: how far ν's uncertainty moves the modulus. E∞ scales as the inverse of
@@ -460,10 +317,6 @@ fn read_one(dir: &Path) -> Result<Run, FitError> {
 
 /// How much of the approach before the first step the record keeps, s.
 const APPROACH_S: f64 = 5.0;
-
-/// The axis whose position is the gel's depth. Not `grip`: in a grasp jig the grip's
-/// closure is shared with the sponge in series, so its position is not the gel's depth.
-const PRESSING_AXES: [&str; 1] = ["normal"];
 
 /// The run's pressing record: its held steps on a pressing axis, the commanded depth as a
 /// ramp from each step's start at the protocol's speed (the stage moves at constant speed;

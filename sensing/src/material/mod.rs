@@ -4,7 +4,9 @@
 mod field_nu;
 pub mod fit;
 mod law;
+mod nu_choice;
 pub mod poisson;
+mod run;
 
 pub use experiments::protocol::material_file as file;
 pub use experiments::protocol::material_file::{MaterialFile, MaterialFileError};

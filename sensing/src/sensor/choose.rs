@@ -95,6 +95,67 @@ struct Scored {
     row: Candidate,
 }
 
+/// The candidates scored so far, and the best.
+struct Board<'a> {
+    groups: &'a [usize],
+    n_groups: usize,
+    scored: &'a [String],
+    best: Option<Scored>,
+    rows: Vec<Candidate>,
+}
+
+impl Board<'_> {
+    /// Scores a candidate on its samples and keeps it if it is the best so far.
+    fn consider(&mut self, spec: Spec, per_run: Vec<RunSamples>) {
+        let row = score(&spec, &per_run, self.groups, self.n_groups, self.scored);
+        let better =
+            row.score.is_finite() && self.best.as_ref().is_none_or(|b| row.score < b.row.score);
+        self.rows.push(row.clone());
+        if better {
+            self.best = Some(Scored { spec, row });
+        }
+    }
+}
+
+/// Every traction map cell and support (those `opts` leaves open), each with and without
+/// the symmetric fit as `symmetric` allows, on a layer `thickness_mm` thick.
+fn consider_traction(
+    board: &mut Board<'_>,
+    g: &Gathered,
+    opts: &CalibrateOptions,
+    thickness_mm: f64,
+    symmetric: &[bool],
+    every: usize,
+) {
+    let cells: Vec<f64> = opts.cell_mm.map_or(CELLS.to_vec(), |c| vec![c]);
+    let supports: Vec<f64> = opts.support.map_or(SUPPORTS.to_vec(), |s| vec![s]);
+    for cell_mm in cells {
+        let base = TractionSettings {
+            thickness_mm,
+            kernel_dx_mm: (thickness_mm / 8.0).min(cell_mm / 2.0),
+            cell_mm,
+            support: 1.0,
+            ellipse: true,
+            lambda: 0.0,
+        };
+        // The kernels depend on the thickness, the cell and the view, not the support:
+        // built once per cell.
+        let kernel = super::reader::kernel_from_view(&g.view, &base);
+        for &support in &supports {
+            let t = traction_settings(g, &kernel, TractionSettings { support, ..base });
+            let per_run = samples_every(g, &How::Traction(&kernel, t), every);
+            for &sym in symmetric {
+                let spec = Spec {
+                    method: Method::Traction,
+                    symmetric: sym,
+                    traction: Some(t),
+                };
+                board.consider(spec, clone_runs(&per_run));
+            }
+        }
+    }
+}
+
 /// Most frames a candidate is scored on (evenly strided over each run): a jig calibration of
 /// thousands of frames would otherwise solve every traction map of every cell and support.
 const MAX_SCORED_FRAMES: usize = 300;
@@ -118,8 +179,6 @@ pub(super) fn choose(
     let symmetric: Vec<bool> = opts.symmetric.map_or_else(|| vec![!g.gripped], |s| vec![s]);
     let explicit = opts.method.is_some();
     let every = stride(g);
-    let mut best: Option<Scored> = None;
-    let mut rows: Vec<Candidate> = Vec::new();
     let scored_channels = loaded_channels(g);
     // Leaving an indenter out tells something only where another indenter holds the left-out
     // one's kind of load; otherwise (one indenter, or each the only one of its kind) the
@@ -133,14 +192,12 @@ pub(super) fn choose(
     } else {
         1
     };
-    let mut consider = |spec: Spec, per_run: Vec<RunSamples>| -> Result<(), SensorError> {
-        let row = score(&spec, &per_run, &groups, n_groups, &scored_channels);
-        let better = row.score.is_finite() && best.as_ref().is_none_or(|b| row.score < b.row.score);
-        rows.push(row.clone());
-        if better {
-            best = Some(Scored { spec, row });
-        }
-        Ok(())
+    let mut board = Board {
+        groups: &groups,
+        n_groups,
+        scored: &scored_channels,
+        best: None,
+        rows: Vec::new(),
     };
     for method in methods {
         match method {
@@ -151,11 +208,11 @@ pub(super) fn choose(
                         symmetric: sym,
                         traction: None,
                     };
-                    consider(spec, samples_every(g, &How::Moments, every))?;
+                    board.consider(spec, samples_every(g, &How::Moments, every));
                 }
             }
             Method::Scale => {
-                let Some(basis_and) = scale_of(g) else {
+                let Some((settings, basis)) = scale_of(g) else {
                     if explicit {
                         return Err(unfit(
                             first,
@@ -167,17 +224,16 @@ pub(super) fn choose(
                     }
                     continue;
                 };
-                let (settings, basis) = basis_and;
                 for &sym in &symmetric {
                     let spec = Spec {
                         method,
                         symmetric: sym,
                         traction: None,
                     };
-                    consider(
+                    board.consider(
                         spec,
                         samples_every(g, &How::Scale(&basis, &settings), every),
-                    )?;
+                    );
                 }
             }
             Method::Traction => {
@@ -192,36 +248,11 @@ pub(super) fn choose(
                     }
                     continue;
                 };
-                let cells: Vec<f64> = opts.cell_mm.map_or(CELLS.to_vec(), |c| vec![c]);
-                let supports: Vec<f64> = opts.support.map_or(SUPPORTS.to_vec(), |s| vec![s]);
-                for cell_mm in cells {
-                    let base = TractionSettings {
-                        thickness_mm: h,
-                        kernel_dx_mm: (h / 8.0).min(cell_mm / 2.0),
-                        cell_mm,
-                        support: 1.0,
-                        ellipse: true,
-                        lambda: 0.0,
-                    };
-                    // The kernels depend on the thickness, the cell and the view, not the
-                    // support: built once per cell.
-                    let kernel = super::reader::kernel_from_view(&g.view, &base);
-                    for &support in &supports {
-                        let t = traction_settings(g, &kernel, TractionSettings { support, ..base });
-                        let per_run = samples_every(g, &How::Traction(&kernel, t), every);
-                        for &sym in &symmetric {
-                            let spec = Spec {
-                                method,
-                                symmetric: sym,
-                                traction: Some(t),
-                            };
-                            consider(spec, clone_runs(&per_run))?;
-                        }
-                    }
-                }
+                consider_traction(&mut board, g, opts, h, &symmetric, every);
             }
         }
     }
+    let (best, mut rows) = (board.best, board.rows);
     let Some(best) = best else {
         return Err(unfit(
             first,

@@ -10,6 +10,7 @@ pub mod file;
 mod fitting;
 mod gather;
 pub mod history;
+pub mod live;
 pub mod maps;
 pub mod reader;
 pub mod scale;

@@ -191,7 +191,7 @@ pub(super) fn sim_truth(input: &Input) -> Option<HashMap<u64, Vec<[f64; 2]>>> {
 /// larger of the two ratios, as the camera fits the view into the frame). `None` when the
 /// run's protocol does not load.
 pub(crate) fn run_scale(dir: &Path, width: usize, height: usize) -> Option<f64> {
-    let loaded = experiments::protocol::load(
+    let loaded = experiments::load::load(
         &dir.join(rundir::names::PROTOCOL),
         Some(&dir.join(rundir::names::RIG)),
     )

@@ -231,25 +231,7 @@ pub(super) fn r4(v: f64) -> f64 {
 pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, TrackFailure> {
     let started = Instant::now();
     let (reference_path, reference_frame_no, frames) = frame_list(input)?;
-    // The reference given again among the frames tracks as no displacement at all, which
-    // reads like a gel that never moved.
-    let canonical = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
-    let reference_canonical = canonical(&reference_path);
-    let mut warnings: Vec<String> = if matches!(input, Input::Files { .. }) {
-        frames
-            .iter()
-            .filter(|(_, p)| canonical(p) == reference_canonical)
-            .map(|(k, p)| {
-                format!(
-                    "the reference {} is also frame {k}: it tracks as zero displacement (pass \
-                     the frames after the reference)",
-                    p.display()
-                )
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
+    let mut warnings = reference_among_frames(input, &reference_path, &frames);
     let (w, h, rgb) = load_rgb(&reference_path)?;
     let reference_err = |source| TrackFailure::Reference {
         path: reference_path.clone(),
@@ -277,94 +259,15 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         Input::RunDir { dir, .. } => run_scale(dir, w, h),
         Input::Files { .. } | Input::ReferenceFree { .. } => None,
     });
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        fs::create_dir_all(parent).map_err(|e| write_err(parent)(e.to_string()))?;
-    }
-    let mut csv_out = csv::Writer::from_path(out).map_err(|e| write_err(out)(e.to_string()))?;
-    let contact_path = contact.then(|| out.with_file_name(rundir::names::CONTACT));
-    if contact_path.as_deref() == Some(out) {
-        return Err(TrackFailure::Usage {
-            detail: format!(
-                "--out {} would overwrite contact.csv, which is written beside it; fix: name \
-                 the --out file otherwise (e.g. markers.csv), or pass --no-contact",
-                out.display()
-            ),
-        });
-    }
-    let mut contact_out = match &contact_path {
-        Some(p) => Some(csv::Writer::from_path(p).map_err(|e| write_err(p)(e.to_string()))?),
-        None => None,
-    };
+    let mut writers = Writers::create(out, contact, mm_per_px)?;
     let mut field = match &opts.field_dir {
         Some(d) => Some(FieldWriter::new(d, &pipeline, opts.magnify)?),
         None => None,
     };
-    let truth = sim_truth(input);
-    // Tracker id → simulator id, by the nearest centre on the reference frame.
-    let truth_ids: Option<Vec<usize>> = truth.as_ref().and_then(|t| {
-        let refs = t.get(&reference_frame_no?)?;
-        Some(
-            pipeline
-                .tracker()
-                .reference_px()
-                .iter()
-                .map(|p| {
-                    (0..refs.len())
-                        .min_by(|&a, &b| {
-                            let da = (refs[a][0] - p[0]).hypot(refs[a][1] - p[1]);
-                            let db = (refs[b][0] - p[0]).hypot(refs[b][1] - p[1]);
-                            da.total_cmp(&db)
-                        })
-                        .unwrap_or(0)
-                })
-                .collect(),
-        )
-    });
-
-    let mut counts: HashMap<&'static str, usize> = HashMap::new();
-    let mut times = Vec::with_capacity(frames.len());
-    let (mut few_blob_frames, mut ambiguous_frames) = (Vec::new(), 0usize);
-    let (mut largest, mut sq, mut worst, mut compared) = (None::<(u64, f64)>, 0.0, 0.0f64, 0);
-    let (mut contact_frames, mut largest_contact) = (0, None::<(u64, f64)>);
-    let mut write_frame = |frame: u64,
-                           file: &str,
-                           pipeline: &Pipeline,
-                           counts: &mut HashMap<&'static str, usize>,
-                           count: bool|
-     -> Result<(), TrackFailure> {
-        let t = pipeline.tracker();
-        for id in 0..t.len() {
-            let p = t.positions_px()[id];
-            let d = t.displacement_px(id);
-            let state = t.states()[id];
-            if count {
-                *counts.entry(state.as_str()).or_default() += 1;
-            }
-            csv_out
-                .serialize(MarkerRow {
-                    frame,
-                    file,
-                    id,
-                    x_px: r4(p[0]),
-                    y_px: r4(p[1]),
-                    dx_px: r4(d[0]),
-                    dy_px: r4(d[1]),
-                    state: state.as_str(),
-                    confidence: r4(t.confidences()[id]),
-                })
-                .map_err(|e| write_err(out)(e.to_string()))?;
-        }
-        csv_out.flush().map_err(|e| write_err(out)(e.to_string()))?;
-        if let (Some(w), Some(path)) = (contact_out.as_mut(), &contact_path) {
-            w.serialize(contact_row(frame, pipeline.contact(), mm_per_px))
-                .map_err(|e| write_err(path)(e.to_string()))?;
-            w.flush().map_err(|e| write_err(path)(e.to_string()))?;
-        }
-        Ok(())
-    };
+    let mut tally = Tally::new(sim_truth(input), reference_frame_no, &pipeline);
     let shown = |p: &Path| p.display().to_string();
     if let Some(no) = reference_frame_no {
-        write_frame(no, &shown(&reference_path), &pipeline, &mut counts, false)?;
+        writers.frame(no, &shown(&reference_path), &pipeline, None)?;
         if let Some(f) = field.as_mut() {
             f.frame(no, &pipeline)?;
         }
@@ -386,12 +289,12 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         let view = RgbView::new(fw, fh, &rgb).map_err(frame_err)?;
         let t0 = Instant::now();
         pipeline.track(view).map_err(frame_err)?;
-        times.push(t0.elapsed().as_secs_f64() * 1e3);
+        tally.times.push(t0.elapsed().as_secs_f64() * 1e3);
         // A frame of another gel or camera stops the command; a dark frame or one whose
         // identities the lattice leaves ambiguous does not (the frames after it are good).
         match pipeline.check_frame() {
             FrameCheck::SameGel => {}
-            FrameCheck::FewBlobs { .. } => few_blob_frames.push(frame),
+            FrameCheck::FewBlobs { .. } => tally.few_blob_frames.push(frame),
             other => {
                 return Err(TrackFailure::Mismatch {
                     path,
@@ -399,71 +302,262 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
                 });
             }
         }
-        if !pipeline.tracker().aliases_px().is_empty() {
-            ambiguous_frames += 1;
-        }
-        write_frame(frame, &shown(&path), &pipeline, &mut counts, true)?;
+        writers.frame(frame, &shown(&path), &pipeline, Some(&mut tally.counts))?;
         if let Some(f) = field.as_mut() {
             f.frame(frame, &pipeline)?;
         }
-        if let Some(c) = pipeline.contact() {
-            contact_frames += 1;
-            if largest_contact.is_none_or(|(_, r)| c.radius_px > r) {
-                largest_contact = Some((frame, c.radius_px));
-            }
-        }
-        let tracker = pipeline.tracker();
-        if let Some(m) = decompose::median_magnitude(&MarkerField::interior_from_tracker(tracker))
-            && largest.is_none_or(|(_, best)| m > best)
-        {
-            largest = Some((frame, m));
-        }
-        if let (Some(truth), Some(ids)) = (&truth, &truth_ids)
-            && let Some(exact) = truth.get(&frame)
-        {
-            for (k, &sim) in ids.iter().enumerate() {
-                if tracker.states()[k] != MarkerState::Tracked {
-                    continue;
-                }
-                if let Some(e) = exact.get(sim) {
-                    let p = tracker.positions_px()[k];
-                    let d = (p[0] - e[0]).hypot(p[1] - e[1]);
-                    if d.is_finite() {
-                        sq += d * d;
-                        worst = worst.max(d);
-                        compared += 1;
-                    }
-                }
-            }
-        }
+        tally.frame(frame, &pipeline);
     }
-    times.sort_by(f64::total_cmp);
-    if let (Some(first), Some(last)) = (few_blob_frames.first(), few_blob_frames.last()) {
+    if let (Some(first), Some(last)) = (tally.few_blob_frames.first(), tally.few_blob_frames.last())
+    {
         warnings.push(format!(
             "{} frame(s) showed almost no markers (frames {first}–{last}): the camera was dark, \
              covered or out of focus there; their rows are predicted, lost or out of view",
-            few_blob_frames.len()
+            tally.few_blob_frames.len()
         ));
     }
+    tally.times.sort_by(f64::total_cmp);
     Ok(Summary {
-        ambiguous_frames,
+        ambiguous_frames: tally.ambiguous_frames,
         frames: frame_count + usize::from(reference_frame_no.is_some()),
         markers: pipeline.tracker().len(),
         spacing_px: pipeline.reference().spacing_px(),
         states: MarkerState::ALL
             .iter()
-            .map(|s| (s.as_str(), counts.get(s.as_str()).copied().unwrap_or(0)))
+            .map(|s| {
+                (
+                    s.as_str(),
+                    tally.counts.get(s.as_str()).copied().unwrap_or(0),
+                )
+            })
             .collect(),
-        median_ms_per_frame: times.get(times.len() / 2).copied().unwrap_or(0.0),
-        largest,
-        truth: (compared > 0).then(|| ((sq / compared as f64).sqrt(), worst, compared)),
+        median_ms_per_frame: tally
+            .times
+            .get(tally.times.len() / 2)
+            .copied()
+            .unwrap_or(0.0),
+        largest: tally.largest,
+        truth: (tally.compared > 0).then(|| {
+            (
+                (tally.sq / tally.compared as f64).sqrt(),
+                tally.worst,
+                tally.compared,
+            )
+        }),
         markers_csv: out.to_path_buf(),
-        contact_csv: contact_path,
-        contact_frames,
-        largest_contact,
+        contact_csv: writers.contact_path,
+        contact_frames: tally.contact_frames,
+        largest_contact: tally.largest_contact,
         mm_per_px,
         wall_s: started.elapsed().as_secs_f64(),
         lattice,
         warnings,
     })
+}
+
+/// The reference given again among the frames tracks as no displacement at all, which
+/// reads like a gel that never moved: a warning for each time it is.
+fn reference_among_frames(
+    input: &Input,
+    reference_path: &Path,
+    frames: &[(u64, PathBuf)],
+) -> Vec<String> {
+    if !matches!(input, Input::Files { .. }) {
+        return Vec::new();
+    }
+    let canonical = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
+    let reference_canonical = canonical(reference_path);
+    frames
+        .iter()
+        .filter(|(_, p)| canonical(p) == reference_canonical)
+        .map(|(k, p)| {
+            format!(
+                "the reference {} is also frame {k}: it tracks as zero displacement (pass \
+                 the frames after the reference)",
+                p.display()
+            )
+        })
+        .collect()
+}
+
+/// `markers.csv`, and `contact.csv` beside it, as the frames are tracked.
+struct Writers {
+    out: PathBuf,
+    markers: csv::Writer<fs::File>,
+    contact: Option<csv::Writer<fs::File>>,
+    contact_path: Option<PathBuf>,
+    mm_per_px: Option<f64>,
+}
+
+impl Writers {
+    /// Creates `out` (its folder too) and, where `contact` is on, `contact.csv` beside it.
+    fn create(out: &Path, contact: bool, mm_per_px: Option<f64>) -> Result<Self, TrackFailure> {
+        if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+            fs::create_dir_all(parent).map_err(|e| write_err(parent)(e.to_string()))?;
+        }
+        let contact_path = contact.then(|| out.with_file_name(rundir::names::CONTACT));
+        if contact_path.as_deref() == Some(out) {
+            return Err(TrackFailure::Usage {
+                detail: format!(
+                    "--out {} would overwrite contact.csv, which is written beside it; fix: name \
+                     the --out file otherwise (e.g. markers.csv), or pass --no-contact",
+                    out.display()
+                ),
+            });
+        }
+        let markers = csv::Writer::from_path(out).map_err(|e| write_err(out)(e.to_string()))?;
+        let contact = match &contact_path {
+            Some(p) => Some(csv::Writer::from_path(p).map_err(|e| write_err(p)(e.to_string()))?),
+            None => None,
+        };
+        Ok(Self {
+            out: out.to_path_buf(),
+            markers,
+            contact,
+            contact_path,
+            mm_per_px,
+        })
+    }
+
+    /// Writes a frame's rows (from `file`), counting its states into `counts` where given
+    /// (the reference's are not counted).
+    fn frame(
+        &mut self,
+        frame: u64,
+        file: &str,
+        pipeline: &Pipeline,
+        mut counts: Option<&mut HashMap<&'static str, usize>>,
+    ) -> Result<(), TrackFailure> {
+        let out = &self.out;
+        let t = pipeline.tracker();
+        for id in 0..t.len() {
+            let p = t.positions_px()[id];
+            let d = t.displacement_px(id);
+            let state = t.states()[id];
+            if let Some(c) = counts.as_deref_mut() {
+                *c.entry(state.as_str()).or_default() += 1;
+            }
+            self.markers
+                .serialize(MarkerRow {
+                    frame,
+                    file,
+                    id,
+                    x_px: r4(p[0]),
+                    y_px: r4(p[1]),
+                    dx_px: r4(d[0]),
+                    dy_px: r4(d[1]),
+                    state: state.as_str(),
+                    confidence: r4(t.confidences()[id]),
+                })
+                .map_err(|e| write_err(out)(e.to_string()))?;
+        }
+        self.markers
+            .flush()
+            .map_err(|e| write_err(out)(e.to_string()))?;
+        if let (Some(w), Some(path)) = (self.contact.as_mut(), &self.contact_path) {
+            w.serialize(contact_row(frame, pipeline.contact(), self.mm_per_px))
+                .map_err(|e| write_err(path)(e.to_string()))?;
+            w.flush().map_err(|e| write_err(path)(e.to_string()))?;
+        }
+        Ok(())
+    }
+}
+
+/// The simulator's exact marker centres by frame, on a simulated run.
+type Truth = HashMap<u64, Vec<[f64; 2]>>;
+
+/// What the command says of the frames it tracked: states, times, the largest deformation
+/// and contact, frames dark or ambiguous, and on simulated runs the error against the
+/// simulator's exact centres.
+struct Tally {
+    counts: HashMap<&'static str, usize>,
+    times: Vec<f64>,
+    few_blob_frames: Vec<u64>,
+    ambiguous_frames: usize,
+    largest: Option<(u64, f64)>,
+    contact_frames: usize,
+    largest_contact: Option<(u64, f64)>,
+    truth: Option<Truth>,
+    /// Tracker id → simulator id, by the nearest centre on the reference frame.
+    truth_ids: Option<Vec<usize>>,
+    sq: f64,
+    worst: f64,
+    compared: usize,
+}
+
+impl Tally {
+    fn new(truth: Option<Truth>, reference_frame_no: Option<u64>, pipeline: &Pipeline) -> Self {
+        let truth_ids: Option<Vec<usize>> = truth.as_ref().and_then(|t| {
+            let refs = t.get(&reference_frame_no?)?;
+            Some(
+                pipeline
+                    .tracker()
+                    .reference_px()
+                    .iter()
+                    .map(|p| {
+                        (0..refs.len())
+                            .min_by(|&a, &b| {
+                                let da = (refs[a][0] - p[0]).hypot(refs[a][1] - p[1]);
+                                let db = (refs[b][0] - p[0]).hypot(refs[b][1] - p[1]);
+                                da.total_cmp(&db)
+                            })
+                            .unwrap_or(0)
+                    })
+                    .collect(),
+            )
+        });
+        Self {
+            counts: HashMap::new(),
+            times: Vec::new(),
+            few_blob_frames: Vec::new(),
+            ambiguous_frames: 0,
+            largest: None,
+            contact_frames: 0,
+            largest_contact: None,
+            truth,
+            truth_ids,
+            sq: 0.0,
+            worst: 0.0,
+            compared: 0,
+        }
+    }
+
+    /// Takes in a tracked frame.
+    fn frame(&mut self, frame: u64, pipeline: &Pipeline) {
+        if !pipeline.tracker().aliases_px().is_empty() {
+            self.ambiguous_frames += 1;
+        }
+        if let Some(c) = pipeline.contact() {
+            self.contact_frames += 1;
+            if self.largest_contact.is_none_or(|(_, r)| c.radius_px > r) {
+                self.largest_contact = Some((frame, c.radius_px));
+            }
+        }
+        let tracker = pipeline.tracker();
+        if let Some(m) = decompose::median_magnitude(&MarkerField::interior_from_tracker(tracker))
+            && self.largest.is_none_or(|(_, best)| m > best)
+        {
+            self.largest = Some((frame, m));
+        }
+        let (Some(truth), Some(ids)) = (&self.truth, &self.truth_ids) else {
+            return;
+        };
+        let Some(exact) = truth.get(&frame) else {
+            return;
+        };
+        for (k, &sim) in ids.iter().enumerate() {
+            if tracker.states()[k] != MarkerState::Tracked {
+                continue;
+            }
+            if let Some(e) = exact.get(sim) {
+                let p = tracker.positions_px()[k];
+                let d = (p[0] - e[0]).hypot(p[1] - e[1]);
+                if d.is_finite() {
+                    self.sq += d * d;
+                    self.worst = self.worst.max(d);
+                    self.compared += 1;
+                }
+            }
+        }
+    }
 }

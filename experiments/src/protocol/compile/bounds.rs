@@ -6,7 +6,7 @@
 //! allocates until killed, a clock that never advances, a disk filled). Each value here gets
 //! a range that covers every real tactile bench with room to spare and says why it ends
 //! where it does; a value outside it is an error naming the range. Non-finite values (`.nan`,
-//! `.inf`) are outside every range. The README's table is generated from the same numbers
+//! `.inf`) are outside every range. The table in docs/reference/validation.md is generated from the same numbers
 //! (`gelrig validate --help` points there).
 
 use rig::config::YamlPath;
@@ -32,7 +32,7 @@ const fn b(lo: f64, hi: f64, unit: &'static str, why: &'static str) -> Bound {
     Bound { lo, hi, unit, why }
 }
 
-/// Every bound, by the name used in messages and the README.
+/// Every bound, by the name used in messages and docs/reference/validation.md.
 pub(crate) const PAD_SIDE: Bound = b(
     1.0,
     500.0,
@@ -191,8 +191,30 @@ impl Compiler<'_> {
         false
     }
 
-    /// The protocol's name and its top-level sections.
+    /// The protocol's name and its top-level sections, then every block of the sequence.
     pub(super) fn check_bounds(&mut self) {
+        let p = self.p;
+        let root = YamlPath::root();
+        self.name_bound();
+        self.elastomer_bounds();
+        self.marker_bounds();
+        self.view_bounds();
+        self.material_bounds();
+        self.indenter_bounds();
+        if let Some(o) = &p.object {
+            self.within(
+                &root.key("object").key("mass"),
+                "object mass",
+                o.mass.g(),
+                MASS,
+            );
+        }
+        self.safety_bounds();
+        self.block_bounds(&p.sequence, &root.key("sequence"), 0);
+    }
+
+    /// The protocol name: 1 to [`NAME_CHARS`] characters, since it names the run directory.
+    fn name_bound(&mut self) {
         let p = self.p;
         let root = YamlPath::root();
         let name_chars = p.name.chars().count();
@@ -205,8 +227,13 @@ impl Compiler<'_> {
                 "write a short name, e.g. `box-normal-flat`, and put the rest in `description:`",
             );
         }
-        let s = &p.sensor;
-        let at = root.key("sensor");
+    }
+
+    /// `sensor.elastomer`: the pad's width and length ([`PAD_SIDE`]) and thickness
+    /// ([`PAD_THICKNESS`]).
+    fn elastomer_bounds(&mut self) {
+        let s = &self.p.sensor;
+        let at = YamlPath::root().key("sensor");
         if let Some(e) = &s.elastomer {
             let e_at = at.key("elastomer");
             self.within(
@@ -228,6 +255,13 @@ impl Compiler<'_> {
                 PAD_THICKNESS,
             );
         }
+    }
+
+    /// `sensor.markers`: a grid's counts, spacing and dot diameter, or a random pattern's
+    /// spacing and dot size.
+    fn marker_bounds(&mut self) {
+        let s = &self.p.sensor;
+        let at = YamlPath::root().key("sensor");
         match &s.markers {
             Some(Markers::Grid {
                 columns,
@@ -268,6 +302,12 @@ impl Compiler<'_> {
             }
             None => {}
         }
+    }
+
+    /// `sensor.view`: the size of pad the camera sees ([`VIEW_SIDE`]).
+    fn view_bounds(&mut self) {
+        let s = &self.p.sensor;
+        let at = YamlPath::root().key("sensor");
         if let Some(v) = &s.view {
             self.within(
                 &at.key("view").key("width"),
@@ -282,6 +322,15 @@ impl Compiler<'_> {
                 VIEW_SIDE,
             );
         }
+    }
+
+    /// `sensor.material` (inline or read from its file): modulus, static and kinetic friction
+    /// (kinetic at most static), and the Prony series — few enough terms, plausible
+    /// relaxation times, each weight in [0, 1) and their sum below 1 (a long-term modulus
+    /// left).
+    fn material_bounds(&mut self) {
+        let s = &self.p.sensor;
+        let at = YamlPath::root().key("sensor");
         if let Some(m) = s.material.as_ref().and_then(|m| m.values()) {
             let mat = at.key("material");
             self.within(
@@ -342,6 +391,14 @@ impl Compiler<'_> {
                 );
             }
         }
+    }
+
+    /// `indenter`: every dimension of its shape ([`FLAT_SIZE`] for punches, [`CURVED_SIZE`]
+    /// for spheres and cylinders), and a flat punch no wider than the pad's narrower side.
+    fn indenter_bounds(&mut self) {
+        let p = self.p;
+        let s = &p.sensor;
+        let root = YamlPath::root();
         let ind = root.key("indenter");
         let dims: Vec<(&str, f64, Bound)> = match &p.indenter {
             IndenterSpec::FlatCircle { diameter } => vec![("diameter", diameter.mm(), FLAT_SIZE)],
@@ -381,14 +438,12 @@ impl Compiler<'_> {
                 );
             }
         }
-        if let Some(o) = &p.object {
-            self.within(
-                &root.key("object").key("mass"),
-                "object mass",
-                o.mass.g(),
-                MASS,
-            );
-        }
+    }
+
+    /// `safety`: the force and torque limits and the monitor rate.
+    fn safety_bounds(&mut self) {
+        let p = self.p;
+        let root = YamlPath::root();
         let safety = root.key("safety");
         self.within(
             &safety.key("max_fz"),
@@ -416,7 +471,6 @@ impl Compiler<'_> {
                 MONITOR_RATE,
             );
         }
-        self.block_bounds(&p.sequence, &root.key("sequence"), 0);
     }
 
     /// Every block's own values, and how deeply blocks nest.

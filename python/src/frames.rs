@@ -1,0 +1,56 @@
+//! Frames at the boundary: numpy `uint8` arrays of H×W×3 in, RGB bytes for the tracker; RGB
+//! bytes out as numpy arrays.
+
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray3, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+/// An RGB frame copied out of a numpy array: its width, height and bytes.
+pub(crate) struct Rgb {
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) bytes: Vec<u8>,
+}
+
+impl Rgb {
+    /// The frame in `array`, which must be `uint8` of shape (height, width, 3); a copy, so
+    /// the GIL can be released while it is tracked.
+    pub(crate) fn from_numpy(array: &PyReadonlyArray3<'_, u8>, what: &str) -> PyResult<Self> {
+        let shape = array.shape();
+        if shape[2] != 3 {
+            return Err(PyValueError::new_err(format!(
+                "{what}: an array of shape {shape:?}; give an RGB frame of shape (height, width, 3), \
+                 dtype uint8 (a grey image: np.repeat(img[..., None], 3, axis=2))"
+            )));
+        }
+        let bytes = match array.as_slice() {
+            Ok(s) => s.to_vec(),
+            // A strided view (a crop, a BGR→RGB flip): copied in order.
+            Err(_) => array.as_array().iter().copied().collect(),
+        };
+        Ok(Self {
+            width: shape[1],
+            height: shape[0],
+            bytes,
+        })
+    }
+
+    /// The tracker's view of these bytes.
+    pub(crate) fn view(&self) -> PyResult<gelrig::track::RgbView<'_>> {
+        gelrig::track::RgbView::new(self.width, self.height, &self.bytes)
+            .map_err(|e| PyValueError::new_err(e.to_string()))
+    }
+}
+
+/// `rgb` (row-major, 3 bytes a pixel) as a numpy array of shape (height, width, 3).
+pub(crate) fn to_numpy<'py>(
+    py: Python<'py>,
+    width: usize,
+    height: usize,
+    rgb: Vec<u8>,
+) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let a = Array3::from_shape_vec((height, width, 3), rgb)
+        .map_err(|e| PyValueError::new_err(format!("a frame of {width}×{height}: {e}")))?;
+    Ok(a.into_pyarray(py))
+}

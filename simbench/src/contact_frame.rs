@@ -1,0 +1,161 @@
+//! A frame of the simulated bench's camera for a contact the caller gives — an indentation
+//! depth, a shear force, a twist, and where the contact sits in the view — without running
+//! a protocol: for a robot loop's tests, a tracker's, or a figure. The frame is drawn as the
+//! simulated camera draws its frames during a dry run (the same contact model and the same
+//! renderer), and comes with the exact centre of every marker.
+
+use mechanics::response::{ContactModel, ModelSpec, State};
+
+use super::plant::PlantSpec;
+use super::render::{Renderer, SurfaceView};
+
+/// The contact to draw.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ContactPose {
+    /// Indentation depth, mm.
+    pub depth_mm: f64,
+    /// Tangential force along the image's x carried by the contact, N.
+    pub shear_n: f64,
+    /// Twisting moment about the normal carried by the contact, N·mm.
+    pub torque_nmm: f64,
+    /// Where the contact's centre sits in the view, from the view's centre (x right, y
+    /// down), mm.
+    pub centre_mm: (f64, f64),
+}
+
+/// One frame: RGB pixels (row-major, 3 bytes a pixel) and the true centre of every marker,
+/// px (pixel (i, j) centred at (i, j)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactFrame {
+    /// Width, px.
+    pub width: u32,
+    /// Height, px.
+    pub height: u32,
+    /// RGB pixels.
+    pub rgb: Vec<u8>,
+    /// Where each printed marker is, px.
+    pub markers_px: Vec<[f64; 2]>,
+    /// The contact's normal force once the gel has relaxed (its long-term elastic force at
+    /// this depth), N; 0 at rest.
+    pub normal_force_n: f64,
+    /// The contact's effective radius √(A/π), mm; 0 at rest.
+    pub contact_radius_mm: f64,
+}
+
+/// Draws frames of one sensor and indenter at one camera resolution.
+pub struct ContactCamera {
+    model: ContactModel,
+    renderer: Renderer,
+    size: (u32, u32),
+    /// The deepest indentation the model was built for, mm.
+    max_depth_mm: f64,
+    /// The shear and twist backbones were built.
+    tangential: bool,
+}
+
+impl ContactCamera {
+    /// A camera of `width × height` px on the sensor of `spec` (from
+    /// `experiments::protocol::plant_spec` of a loaded protocol), pressing only: shear and
+    /// twist are drawn as zero. Builds the contact model once (the costly part, as when a
+    /// run opens its simulated bench).
+    pub fn new(spec: &PlantSpec, width: u32, height: u32) -> Result<Self, String> {
+        Self::build(spec, width, height, false)
+    }
+
+    /// As [`Self::new`], with the shear and twist backbones built too.
+    pub fn with_shear_and_twist(spec: &PlantSpec, width: u32, height: u32) -> Result<Self, String> {
+        Self::build(spec, width, height, true)
+    }
+
+    fn build(spec: &PlantSpec, width: u32, height: u32, tangential: bool) -> Result<Self, String> {
+        if !(16..=8192).contains(&width) || !(16..=8192).contains(&height) {
+            return Err(format!(
+                "a {width}×{height} px camera: cameras deliver 16 to 8192 pixels a side"
+            ));
+        }
+        let model = ContactModel::build(ModelSpec {
+            contact: spec.contact.clone(),
+            max_depth_mm: spec.max_depth_mm,
+            shear: tangential,
+            twist: tangential,
+            field_view_mm: Some((spec.view_width_mm, spec.view_height_mm)),
+            pressing_friction: true,
+            quality: spec.quality,
+        })
+        .map_err(|e| e.to_string())?;
+        Ok(Self {
+            model,
+            renderer: Renderer::new(spec, width, height),
+            size: (width, height),
+            max_depth_mm: spec.max_depth_mm,
+            tangential,
+        })
+    }
+
+    /// The gel at rest: no contact.
+    pub fn at_rest(&self, seq: u64) -> ContactFrame {
+        self.frame_of(None, seq)
+    }
+
+    /// The frame of `contact`; `seq` picks the sensor noise (each frame number its own). An
+    /// error names a contact the model cannot draw (deeper than the spec's deepest
+    /// indentation, a shear or twist on a pressing-only camera, a value not finite).
+    pub fn frame(&mut self, contact: &ContactPose, seq: u64) -> Result<ContactFrame, String> {
+        let values = [
+            contact.depth_mm,
+            contact.shear_n,
+            contact.torque_nmm,
+            contact.centre_mm.0,
+            contact.centre_mm.1,
+        ];
+        if values.iter().any(|v| !v.is_finite()) {
+            return Err(format!(
+                "the contact {contact:?} has a value that is not finite"
+            ));
+        }
+        if !(0.0..=self.max_depth_mm).contains(&contact.depth_mm) {
+            return Err(format!(
+                "depth {} mm: the contact model was built for depths 0 to {:.3} mm (the spec's \
+                 `max_depth_mm`; raise it to draw deeper)",
+                contact.depth_mm, self.max_depth_mm
+            ));
+        }
+        if !self.tangential && (contact.shear_n != 0.0 || contact.torque_nmm != 0.0) {
+            return Err(format!(
+                "a shear of {} N and a twist of {} N·mm on a camera built for pressing only: \
+                 build it with `ContactCamera::with_shear_and_twist`",
+                contact.shear_n, contact.torque_nmm
+            ));
+        }
+        let state = State {
+            depth_mm: contact.depth_mm,
+            shear_n: contact.shear_n,
+            torque_nmm: contact.torque_nmm,
+        };
+        let field = self
+            .model
+            .field(state)
+            .ok_or_else(|| format!("the contact model cannot draw {contact:?}"))?;
+        let surface = SurfaceView {
+            field,
+            centre_mm: contact.centre_mm,
+            rotation_rad: 0.0,
+        };
+        let mut frame = self.frame_of(Some(&surface), seq);
+        frame.normal_force_n = self.model.normal_force_n(contact.depth_mm);
+        frame.contact_radius_mm = self.model.contact_radius_mm(contact.depth_mm);
+        Ok(frame)
+    }
+
+    fn frame_of(&self, surface: Option<&SurfaceView>, seq: u64) -> ContactFrame {
+        let (rgb, markers_px) = self.renderer.render(surface, seq);
+        ContactFrame {
+            width: self.size.0,
+            height: self.size.1,
+            rgb,
+            markers_px,
+            normal_force_n: 0.0,
+            contact_radius_mm: 0.0,
+        }
+    }
+}

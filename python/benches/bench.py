@@ -10,6 +10,7 @@ in one process:
 Run: python python/benches/bench.py  (after `pip install ./python`).
 """
 
+import re
 import statistics
 import subprocess
 import tempfile
@@ -54,7 +55,7 @@ def rust_cost():
         ["cargo", "run", "-q", "--release", "-p", "gelrig", "--example", "track_cost"],
         cwd=repo, capture_output=True, text=True, check=True,
     )
-    return float(done.stdout.split(":")[1].split("ms")[0])
+    return float(re.search(r"([0-9.]+) ms median", done.stdout).group(1))
 
 
 def force_table_cost(tmp: Path):

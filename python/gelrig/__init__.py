@@ -154,7 +154,9 @@ def _is_integer(column: str) -> bool:
 
 
 def _read_table(path: Path) -> pd.DataFrame:
-    header = pacsv.read_csv(path, read_options=pacsv.ReadOptions(block_size=1 << 16)).schema
+    # The column types from the first block only (a streaming reader infers them there).
+    with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=1 << 16)) as reader:
+        header = reader.schema
     types = {}
     for field in header:
         if pa.types.is_integer(field.type):

@@ -17,6 +17,22 @@ impl Rgb {
     /// The frame in `array`, which must be `uint8` of shape (height, width, 3); a copy, so
     /// the GIL can be released while it is tracked.
     pub(crate) fn from_numpy(array: &PyReadonlyArray3<'_, u8>, what: &str) -> PyResult<Self> {
+        let mut rgb = Self {
+            width: 0,
+            height: 0,
+            bytes: Vec::new(),
+        };
+        rgb.copy_from(array, what)?;
+        Ok(rgb)
+    }
+
+    /// Copies `array` into this frame's buffer, reusing its allocation: a tracker called on
+    /// every camera frame then allocates (and faults in) no new memory per frame.
+    pub(crate) fn copy_from(
+        &mut self,
+        array: &PyReadonlyArray3<'_, u8>,
+        what: &str,
+    ) -> PyResult<()> {
         let shape = array.shape();
         if shape[2] != 3 {
             return Err(PyValueError::new_err(format!(
@@ -24,16 +40,15 @@ impl Rgb {
                  dtype uint8 (a grey image: np.repeat(img[..., None], 3, axis=2))"
             )));
         }
-        let bytes = match array.as_slice() {
-            Ok(s) => s.to_vec(),
+        self.bytes.clear();
+        match array.as_slice() {
+            Ok(s) => self.bytes.extend_from_slice(s),
             // A strided view (a crop, a BGR→RGB flip): copied in order.
-            Err(_) => array.as_array().iter().copied().collect(),
-        };
-        Ok(Self {
-            width: shape[1],
-            height: shape[0],
-            bytes,
-        })
+            Err(_) => self.bytes.extend(array.as_array().iter().copied()),
+        }
+        self.width = shape[1];
+        self.height = shape[0];
+        Ok(())
     }
 
     /// The tracker's view of these bytes.

@@ -19,6 +19,8 @@ pub(crate) struct Tracker {
     pipeline: Pipeline,
     size: (usize, usize),
     mm_per_px: Option<f64>,
+    /// The frame being tracked, copied out of numpy into a buffer kept between calls.
+    frame: Rgb,
 }
 
 /// One tracked frame.
@@ -82,6 +84,7 @@ impl Tracker {
             pipeline: pipeline.map_err(gelrig_err)?,
             size: (rgb.width, rgb.height),
             mm_per_px,
+            frame: rgb,
         })
     }
 
@@ -98,13 +101,15 @@ impl Tracker {
 
     /// Tracks `frame` (same size as the reference) and returns where every marker is.
     fn track(&mut self, py: Python<'_>, frame: PyReadonlyArray3<'_, u8>) -> PyResult<TrackResult> {
-        let rgb = Rgb::from_numpy(&frame, "frame")?;
+        let rgb = &mut self.frame;
+        rgb.copy_from(&frame, "frame")?;
         if (rgb.width, rgb.height) != self.size {
             return Err(PyValueError::new_err(format!(
                 "frame of {}×{} px; the reference is {}×{} px: track frames of the same camera",
                 rgb.width, rgb.height, self.size.0, self.size.1
             )));
         }
+        let rgb = &self.frame;
         let pipeline = &mut self.pipeline;
         py.detach(|| -> Result<(), String> {
             let view = rgb.view().map_err(|e| e.to_string())?;

@@ -179,8 +179,8 @@ class Run:
         "markers": "markers.csv",
         "contact": "contact.csv",
         "tactile": "tactile.csv",
-        "trials": "trials.csv",
         "wrench": "wrench.csv",
+        "sim_steps": "sim_steps.csv",
     }
 
     def __init__(self, path: PathLike):
@@ -201,7 +201,7 @@ class Run:
 
     def table(self, name: str) -> pd.DataFrame:
         """The table ``name`` (``force``, ``steps``, ``frames``, ``markers``, ``contact``,
-        ``tactile``, ``trials``, ``axes``, ``wrench``) as a DataFrame."""
+        ``tactile``, ``axes``, ``wrench``, ``sim_steps``) as a DataFrame."""
         if name not in self._TABLES:
             raise GelrigError(f"no table `{name}`; the tables are {', '.join(self._TABLES)}")
         if name not in self._cache:
@@ -218,7 +218,21 @@ class Run:
     markers = property(lambda self: self.table("markers"))
     contact = property(lambda self: self.table("contact"))
     tactile = property(lambda self: self.table("tactile"))
-    trials = property(lambda self: self.table("trials"))
+
+    @property
+    def trials(self) -> pd.DataFrame:
+        """A grasp run's trials, one row each (held or slipped, when slip was felt, the
+        lead of the warning, …), as its report finds them; the report is made first if the
+        run has none."""
+        summary_path = self.path / "report" / "summary.json"
+        if summary_path.is_file():
+            summary = json.loads(summary_path.read_text())
+        else:
+            summary = self.report()[1]
+        rows = summary.get("trials")
+        if not isinstance(rows, list):
+            raise GelrigError(f"{self.path}: this run has no trials (it repeats no grasp)")
+        return pd.DataFrame(rows)
     axes = property(lambda self: self.table("axes"))
 
     def frame(self, index: int) -> np.ndarray:

@@ -109,3 +109,14 @@ def test_an_exception_in_the_callback_stops_the_run_cleanly(tmp_path):
         gelrig.run("box-normal-flat", out=tmp_path, seed=3, on_event=boom)
     (d,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     assert gelrig.Run(d).status == "aborted"
+
+
+def test_a_grasp_runs_trials_are_a_dataframe(tmp_path):
+    p = gelrig.Protocol.load("lifting-can", set={"sequence.2.repeat.times": "2"})
+    run = gelrig.run(p, out=tmp_path, seed=1)
+    trials = run.trials
+    assert len(trials) == 2
+    assert (run.path / "report" / "summary.json").is_file()
+    assert len(run.tactile) > 0 and run.tactile["t_ns"].dtype == np.int64
+    with pytest.raises(gelrig.GelrigError, match="no trials"):
+        gelrig.Run(gelrig.run("box-normal-flat", out=tmp_path / "box", seed=1).path).trials

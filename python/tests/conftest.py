@@ -5,6 +5,7 @@ import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 from pathlib import Path
 
 import pytest
@@ -45,11 +46,16 @@ def portable_sensor(runs_dir):
 
 def gelrig_cli(args, **kw):
     """Runs the `gelrig` script of this environment (the wheel's) and returns its output."""
-    exe = shutil.which("gelrig", path=str(Path(sys.executable).parent))
-    assert exe, "the wheel installs the `gelrig` command beside the interpreter"
+    exe = shutil.which("gelrig", path=scripts_path())
+    assert exe, f"the wheel installs the `gelrig` command into {scripts_path()}"
     done = subprocess.run([exe, *args], capture_output=True, text=True, **kw)
     assert done.returncode == 0, f"gelrig {' '.join(args)}: {done.stderr}"
     return done.stdout
+
+
+def scripts_path():
+    """Where pip put this environment's scripts (the wheel's `gelrig` among them)."""
+    return os.pathsep.join([sysconfig.get_path("scripts"), str(Path(sys.executable).parent)])
 
 
 def mini_press():

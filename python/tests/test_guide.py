@@ -3,10 +3,8 @@ in order, in one namespace, in a fresh folder."""
 
 import os
 import re
-import sys
-from pathlib import Path
 
-from conftest import REPO
+from conftest import REPO, scripts_path
 
 
 def test_the_python_guide_runs(tmp_path, monkeypatch):
@@ -15,7 +13,7 @@ def test_the_python_guide_runs(tmp_path, monkeypatch):
     assert len(blocks) >= 3
     monkeypatch.chdir(tmp_path)
     # The guide's reader has the environment's `gelrig` command on the PATH.
-    monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
+    monkeypatch.setenv("PATH", f"{scripts_path()}{os.pathsep}{os.environ['PATH']}")
     namespace: dict = {}
     for k, block in enumerate(blocks, start=1):
         try:

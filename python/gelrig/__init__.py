@@ -17,6 +17,7 @@ the fix.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
@@ -28,6 +29,13 @@ import pyarrow.csv as pacsv
 from . import _gelrig
 from ._gelrig import ForceSensor, GelrigError, ProtocolError, Tracker, TrackResult
 from . import sim
+
+# The shipped protocols travel in the wheel (`gelrig/protocols`, the repository's
+# `protocols/`): found by name from any folder, as the command finds them beside its binary.
+# A `GELRIG_PROTOCOLS` the user set wins.
+_SHIPPED = Path(__file__).with_name("protocols")
+if "GELRIG_PROTOCOLS" not in os.environ and (_SHIPPED / "rigs" / "sim.yaml").is_file():
+    os.environ["GELRIG_PROTOCOLS"] = str(_SHIPPED)
 
 __version__ = _gelrig.__version__
 __all__ = [

@@ -70,7 +70,9 @@ class Tracker:
     def __len__(self) -> int: ...
     @property
     def reference_xy(self) -> npt.NDArray[np.float64]: ...
-    def track(self, frame: Frame) -> TrackResult: ...
+    def track(self, frame: Frame) -> TrackResult:
+        """Track `frame`; a C-contiguous frame is read in place with the GIL released (do
+        not write into it from another thread meanwhile), a strided view is copied."""
 
 class ForceSensor:
     """A calibrated GelSight (`gelrig calibrate`'s sensor file) read frame by frame."""
@@ -102,11 +104,14 @@ class Bench:
     def press(
         self,
         depth_mm: float,
-        shear_n: float = 0.0,
-        torque_nmm: float = 0.0,
+        shear_mm: float = 0.0,
+        twist_deg: float = 0.0,
         x_mm: float = 0.0,
         y_mm: float = 0.0,
-    ) -> tuple[Frame, dict[str, float], dict[str, Any]]: ...
+    ) -> tuple[Frame, dict[str, float], dict[str, Any]]:
+        """Press `depth_mm`, then move the indenter `shear_mm` along x and turn it
+        `twist_deg` (the stage's moves from the pressed state): (frame, wrench, truth with
+        the contact radius, stick fractions and every marker's exact centre)."""
 
 def run(
     protocol: Protocol,

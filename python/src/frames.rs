@@ -34,12 +34,7 @@ impl Rgb {
         what: &str,
     ) -> PyResult<()> {
         let shape = array.shape();
-        if shape[2] != 3 {
-            return Err(PyValueError::new_err(format!(
-                "{what}: an array of shape {shape:?}; give an RGB frame of shape (height, width, 3), \
-                 dtype uint8 (a grey image: np.repeat(img[..., None], 3, axis=2))"
-            )));
-        }
+        check_rgb(shape, what)?;
         self.bytes.clear();
         match array.as_slice() {
             Ok(s) => self.bytes.extend_from_slice(s),
@@ -56,6 +51,17 @@ impl Rgb {
         gelrig::track::RgbView::new(self.width, self.height, &self.bytes)
             .map_err(|e| PyValueError::new_err(e.to_string()))
     }
+}
+
+/// An array of `shape` is an RGB frame (height, width, 3), or the error says how to make one.
+pub(crate) fn check_rgb(shape: &[usize], what: &str) -> PyResult<()> {
+    if shape[2] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "{what}: an array of shape {shape:?}; give an RGB frame of shape (height, width, 3), \
+             dtype uint8 (a grey image: np.repeat(img[..., None], 3, axis=2))"
+        )));
+    }
+    Ok(())
 }
 
 /// `rgb` (row-major, 3 bytes a pixel) as a numpy array of shape (height, width, 3).

@@ -45,14 +45,26 @@ fn protocol_of(sensor: &str) -> PyResult<&'static str> {
 
 fn frame_tuple<'py>(py: Python<'py>, f: ContactFrame, pose: &ContactPose) -> PyResult<Drawn<'py>> {
     let wrench = PyDict::new(py);
-    wrench.set_item("fx_n", pose.shear_n)?;
+    wrench.set_item("fx_n", f.shear_n)?;
     wrench.set_item("fy_n", 0.0)?;
     wrench.set_item("fz_n", f.normal_force_n)?;
-    wrench.set_item("tz_nmm", pose.torque_nmm)?;
+    wrench.set_item("tz_nmm", f.torque_nmm)?;
     let truth = PyDict::new(py);
     truth.set_item("depth_mm", pose.depth_mm)?;
+    truth.set_item("shear_mm", pose.shear_mm)?;
+    truth.set_item("twist_deg", pose.twist_deg)?;
     truth.set_item("contact_radius_mm", f.contact_radius_mm)?;
     truth.set_item("centre_mm", pose.centre_mm)?;
+    truth.set_item("stick_fraction_shear", f.stick_fraction_shear)?;
+    truth.set_item("stick_fraction_twist", f.stick_fraction_twist)?;
+    // One channel loaded (or none): its stick fraction. Both: the model superposes the
+    // two channels' tractions, and the combined contact's stick area is not known.
+    let stick = match (pose.shear_mm != 0.0, pose.twist_deg != 0.0) {
+        (true, true) => None,
+        (false, true) => f.stick_fraction_twist,
+        _ => f.stick_fraction_shear,
+    };
+    truth.set_item("stick_fraction", stick)?;
     let flat: Vec<f64> = f.markers_px.iter().flat_map(|p| [p[0], p[1]]).collect();
     let markers = Array2::from_shape_vec((f.markers_px.len(), 2), flat)
         .map_err(|e| gelrig_err(e.to_string()))?;
@@ -149,29 +161,30 @@ impl Bench {
         frame_tuple(py, f, &ContactPose::default())
     }
 
-    /// The gel pressed `depth_mm` deep, carrying `shear_n` along the image's x and
-    /// `torque_nmm` about the normal, the contact centred at (`x_mm`, `y_mm`) from the view's
-    /// centre, at equilibrium: (frame, wrench, truth). The wrench is the contact's (its
-    /// normal force once the gel has relaxed); the truth holds the contact radius and every
-    /// marker's exact centre, px.
-    #[pyo3(signature = (depth_mm, shear_n=0.0, torque_nmm=0.0, x_mm=0.0, y_mm=0.0))]
+    /// The gel pressed `depth_mm` deep, then the indenter moved `shear_mm` along the image's
+    /// x and turned `twist_deg` about the normal (from the pressed state, as a stage does),
+    /// the contact centred at (`x_mm`, `y_mm`) from the view's centre, at equilibrium:
+    /// (frame, wrench, truth). The wrench is the contact's (its normal force once the gel
+    /// has relaxed, the shear force and moment its partial slip sets); the truth holds the
+    /// contact radius, the stick fractions and every marker's exact centre, px.
+    #[pyo3(signature = (depth_mm, shear_mm=0.0, twist_deg=0.0, x_mm=0.0, y_mm=0.0))]
     fn press<'py>(
         &mut self,
         py: Python<'py>,
         depth_mm: f64,
-        shear_n: f64,
-        torque_nmm: f64,
+        shear_mm: f64,
+        twist_deg: f64,
         x_mm: f64,
         y_mm: f64,
     ) -> PyResult<Drawn<'py>> {
         let pose = ContactPose {
             depth_mm,
-            shear_n,
-            torque_nmm,
+            shear_mm,
+            twist_deg,
             centre_mm: (x_mm, y_mm),
         };
         let seq = self.next_seq();
-        let tangential = shear_n != 0.0 || torque_nmm != 0.0;
+        let tangential = shear_mm != 0.0 || twist_deg != 0.0;
         if tangential && self.tangential.is_none() {
             let (spec, (w, h)) = (&self.spec, self.size);
             let cam = py.detach(|| ContactCamera::with_shear_and_twist(spec, w, h));

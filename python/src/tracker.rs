@@ -3,14 +3,14 @@
 //! Lucas–Kanade, the contact region).
 
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use gelrig::track::{ContactParams, MarkerState, Method, Pipeline, TrackParams};
 
-use crate::frames::Rgb;
+use crate::frames::{self, Rgb};
 use crate::gelrig_err;
 
 /// Follows every marker of a reference frame through the frames it is given.
@@ -19,7 +19,7 @@ pub(crate) struct Tracker {
     pipeline: Pipeline,
     size: (usize, usize),
     mm_per_px: Option<f64>,
-    /// The frame being tracked, copied out of numpy into a buffer kept between calls.
+    /// A strided frame's pixels, copied out of numpy into a buffer kept between calls.
     frame: Rgb,
 }
 
@@ -100,19 +100,32 @@ impl Tracker {
     }
 
     /// Tracks `frame` (same size as the reference) and returns where every marker is.
+    ///
+    /// A C-contiguous frame (what a camera, `cv2` or `np.asarray` hands over) is read in
+    /// place with the GIL released, as OpenCV-Python reads its arrays: another thread must
+    /// not write into it meanwhile. A strided view (a crop, a channel flip) is copied first.
     fn track(&mut self, py: Python<'_>, frame: PyReadonlyArray3<'_, u8>) -> PyResult<TrackResult> {
-        let rgb = &mut self.frame;
-        rgb.copy_from(&frame, "frame")?;
-        if (rgb.width, rgb.height) != self.size {
+        let shape = frame.shape();
+        frames::check_rgb(shape, "frame")?;
+        if (shape[1], shape[0]) != self.size {
             return Err(PyValueError::new_err(format!(
-                "frame of {}×{} px; the reference is {}×{} px: track frames of the same camera",
-                rgb.width, rgb.height, self.size.0, self.size.1
+                "frame of shape {shape:?}; the reference is ({}, {}, 3): track uint8 RGB frames \
+                 of the same camera",
+                self.size.1, self.size.0
             )));
         }
-        let rgb = &self.frame;
+        let (width, height) = self.size;
         let pipeline = &mut self.pipeline;
+        let bytes: &[u8] = match frame.as_slice() {
+            Ok(s) => s,
+            Err(_) => {
+                self.frame.copy_from(&frame, "frame")?;
+                &self.frame.bytes
+            }
+        };
         py.detach(|| -> Result<(), String> {
-            let view = rgb.view().map_err(|e| e.to_string())?;
+            let view =
+                gelrig::track::RgbView::new(width, height, bytes).map_err(|e| e.to_string())?;
             pipeline.track(view).map_err(|e| e.to_string())
         })
         .map_err(gelrig_err)?;

@@ -3,6 +3,10 @@ command, typed as the CSVs are."""
 
 import csv
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +26,24 @@ def test_a_protocol_loads_by_name_and_plans():
     cli = json.loads(gelrig_cli(["plan", "box-normal-flat", "--json"]))
     assert [s["step"] for s in cli["steps"]] == list(plan["step"])
     assert cli["duration_s"]["max"] == pytest.approx(hi)
+
+
+def test_the_package_carries_every_shipped_protocol(tmp_path):
+    """The wheel holds the repository's `protocols/` (every file, byte for byte), and a
+    Python started anywhere, with no `GELRIG_PROTOCOLS`, finds them there by name."""
+    package = Path(gelrig.__file__).parent / "protocols"
+    repo = Path(__file__).resolve().parents[2] / "protocols"
+    shipped = sorted(p.relative_to(repo) for p in repo.rglob("*.yaml"))
+    assert len(shipped) >= 16
+    assert sorted(p.relative_to(package) for p in package.rglob("*.yaml")) == shipped
+    for rel in shipped:
+        assert (package / rel).read_bytes() == (repo / rel).read_bytes(), rel
+    env = {k: v for k, v in os.environ.items() if k != "GELRIG_PROTOCOLS"}
+    found = subprocess.run(
+        [sys.executable, "-c", "import gelrig; print(gelrig.Protocol.load('portable-shear').path)"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, check=True,
+    ).stdout.strip()
+    assert Path(found) == (package / "portable-shear.yaml").resolve()
 
 
 def test_a_protocol_that_does_not_check_raises_with_its_diagnostics():

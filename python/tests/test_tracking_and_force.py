@@ -74,6 +74,38 @@ def test_frames_of_the_bench_track_back_to_their_truth():
         gelrig.sim.Bench("glove")
 
 
+def test_a_sheared_press_carries_the_force_its_partial_slip_sets():
+    """`shear_mm` and `twist_deg` are stage displacements from the pressed state (Yuan 2014,
+    §3.3): the force grows while the stuck area shrinks, and saturates once it slides."""
+    bench = gelrig.sim.Bench(
+        "box", indenter={"shape": "sphere", "diameter": "12.68 mm"}, seed=2, max_depth_mm=1.0
+    )
+    ref, _, rest = bench.reference()
+    forces, sticks = [], []
+    for shear_mm in (0.0, 0.05, 0.2, 0.5, 2.0, 3.0):
+        _, wrench, truth = bench.press(0.8, shear_mm=shear_mm)
+        forces.append(wrench["fx_n"])
+        sticks.append(truth["stick_fraction"])
+        assert truth["stick_fraction"] == truth["stick_fraction_shear"]
+    assert forces[0] == 0 and sticks[0] == 1
+    assert all(b > a for a, b in zip(forces[:5], forces[1:5])), forces
+    assert all(b < a for a, b in zip(sticks[:5], sticks[1:5])), sticks
+    # Sliding: nothing sticks and the force no longer grows.
+    assert sticks[-1] == 0 and forces[-1] == pytest.approx(forces[-2], rel=1e-9)
+    _, wrench, truth = bench.press(0.8, twist_deg=5.0)
+    assert wrench["tz_nmm"] > 0 and 0 < truth["stick_fraction"] < 1
+    _, wrench, truth = bench.press(0.8, shear_mm=-0.2, twist_deg=5.0)
+    assert wrench["fx_n"] == pytest.approx(-forces[2]) and truth["stick_fraction"] is None
+    # The frame shows it: inside the contact the markers moved along +x, tracked back.
+    frame, _, truth = bench.press(0.8, shear_mm=0.2)
+    result = gelrig.Tracker(ref).track(frame)
+    tracked = np.array(result.state) == "tracked"
+    ids = [int(np.argmin(np.hypot(*(rest["markers_px"] - p).T))) for p in result.xy - result.dxy]
+    err = np.hypot(*(result.xy[tracked] - truth["markers_px"][ids][tracked]).T)
+    assert np.median(err) < 0.1, np.median(err)
+    assert result.dxy[tracked, 0].max() > 1.0
+
+
 def test_the_force_reader_gives_track_sensors_reading(portable_sensor, runs_dir):
     (held_out, *_) = portable_runs(runs_dir, 2)
     gelrig_cli(["track", str(held_out.path), "--sensor", str(portable_sensor)])

@@ -1,5 +1,5 @@
 //! A frame of the simulated bench's camera for a contact the caller gives — an indentation
-//! depth, a shear force, a twist, and where the contact sits in the view — without running
+//! depth, a stage shear and twist, and where the contact sits in the view — without running
 //! a protocol: for a robot loop's tests, a tracker's, or a figure. The frame is drawn as the
 //! simulated camera draws its frames during a dry run (the same contact model and the same
 //! renderer), and comes with the exact centre of every marker.
@@ -14,10 +14,13 @@ use super::render::{Renderer, SurfaceView};
 pub struct ContactPose {
     /// Indentation depth, mm.
     pub depth_mm: f64,
-    /// Tangential force along the image's x carried by the contact, N.
-    pub shear_n: f64,
-    /// Twisting moment about the normal carried by the contact, N·mm.
-    pub torque_nmm: f64,
+    /// How far the indenter has been moved along the image's x after pressing, mm: the
+    /// stage displacement of the thesis's shear experiments (§3.3), applied monotonically
+    /// from the pressed state (the virgin branch of the shear backbone).
+    pub shear_mm: f64,
+    /// How far the indenter has been turned about the normal after pressing, degrees (the
+    /// virgin branch of the twist backbone).
+    pub twist_deg: f64,
     /// Where the contact's centre sits in the view, from the view's centre (x right, y
     /// down), mm.
     pub centre_mm: (f64, f64),
@@ -40,6 +43,15 @@ pub struct ContactFrame {
     pub normal_force_n: f64,
     /// The contact's effective radius √(A/π), mm; 0 at rest.
     pub contact_radius_mm: f64,
+    /// The tangential force the contact carries at the pose's shear, N (along x).
+    pub shear_n: f64,
+    /// The twisting moment the contact carries at the pose's twist, N·mm.
+    pub torque_nmm: f64,
+    /// The fraction of the contact area that sticks under the pose's shear (1 before any
+    /// shear, 0 once the contact slides); `None` with no contact.
+    pub stick_fraction_shear: Option<f64>,
+    /// The same under the pose's twist.
+    pub stick_fraction_twist: Option<f64>,
 }
 
 /// Draws frames of one sensor and indenter at one camera resolution.
@@ -103,8 +115,8 @@ impl ContactCamera {
     pub fn frame(&mut self, contact: &ContactPose, seq: u64) -> Result<ContactFrame, String> {
         let values = [
             contact.depth_mm,
-            contact.shear_n,
-            contact.torque_nmm,
+            contact.shear_mm,
+            contact.twist_deg,
             contact.centre_mm.0,
             contact.centre_mm.1,
         ];
@@ -120,17 +132,21 @@ impl ContactCamera {
                 contact.depth_mm, self.max_depth_mm
             ));
         }
-        if !self.tangential && (contact.shear_n != 0.0 || contact.torque_nmm != 0.0) {
+        if !self.tangential && (contact.shear_mm != 0.0 || contact.twist_deg != 0.0) {
             return Err(format!(
-                "a shear of {} N and a twist of {} N·mm on a camera built for pressing only: \
+                "a shear of {} mm and a twist of {}° on a camera built for pressing only: \
                  build it with `ContactCamera::with_shear_and_twist`",
-                contact.shear_n, contact.torque_nmm
+                contact.shear_mm, contact.twist_deg
             ));
         }
+        let (shear_n, stick_shear) =
+            self.tangential_at(contact.depth_mm, contact.shear_mm, false)?;
+        let twist_rad = contact.twist_deg.to_radians();
+        let (torque_nmm, stick_twist) = self.tangential_at(contact.depth_mm, twist_rad, true)?;
         let state = State {
             depth_mm: contact.depth_mm,
-            shear_n: contact.shear_n,
-            torque_nmm: contact.torque_nmm,
+            shear_n,
+            torque_nmm,
         };
         let field = self
             .model
@@ -144,7 +160,46 @@ impl ContactCamera {
         let mut frame = self.frame_of(Some(&surface), seq);
         frame.normal_force_n = self.model.normal_force_n(contact.depth_mm);
         frame.contact_radius_mm = self.model.contact_radius_mm(contact.depth_mm);
+        frame.shear_n = shear_n;
+        frame.torque_nmm = torque_nmm;
+        frame.stick_fraction_shear = stick_shear;
+        frame.stick_fraction_twist = stick_twist;
         Ok(frame)
+    }
+
+    /// The force (or moment) and stick fraction at displacement `x` (mm, or rad when
+    /// `twist`) on the virgin branch of the contact's backbone at `depth_mm` (Yuan 2014,
+    /// §3.3: the stage moves, the contact's partial slip sets the force). `(0, None)` with no
+    /// contact; `(0, Some(1))` before any displacement.
+    fn tangential_at(
+        &mut self,
+        depth_mm: f64,
+        x: f64,
+        twist: bool,
+    ) -> Result<(f64, Option<f64>), String> {
+        if depth_mm <= 0.0 {
+            return Ok((0.0, None));
+        }
+        if x == 0.0 {
+            return Ok((0.0, Some(1.0)));
+        }
+        let curve = match twist {
+            true => self.model.twist_curve(depth_mm),
+            false => self.model.shear_curve(depth_mm),
+        };
+        let (backbone, stick) =
+            curve.ok_or_else(|| format!("no tangential table at depth {depth_mm} mm"))?;
+        let force = backbone.force(x);
+        let n = backbone.x.len();
+        let at = x.abs();
+        let fraction = if n == 0 || at >= backbone.x[n - 1] {
+            stick.last().copied().unwrap_or(0.0)
+        } else {
+            let i = backbone.x.partition_point(|v| *v <= at).clamp(1, n - 1);
+            let t = (at - backbone.x[i - 1]) / (backbone.x[i] - backbone.x[i - 1]);
+            stick[i - 1] * (1.0 - t) + stick[i] * t
+        };
+        Ok((force, Some(fraction.clamp(0.0, 1.0))))
     }
 
     fn frame_of(&self, surface: Option<&SurfaceView>, seq: u64) -> ContactFrame {
@@ -156,6 +211,10 @@ impl ContactCamera {
             markers_px,
             normal_force_n: 0.0,
             contact_radius_mm: 0.0,
+            shear_n: 0.0,
+            torque_nmm: 0.0,
+            stick_fraction_shear: None,
+            stick_fraction_twist: None,
         }
     }
 }

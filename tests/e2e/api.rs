@@ -144,7 +144,7 @@ fn wrong_input_through_the_api_is_an_error() {
     assert!(camera.frame(&nan, 1).unwrap_err().contains("not finite"));
     let sheared = sim::ContactPose {
         depth_mm: 0.1,
-        shear_n: 0.5,
+        shear_mm: 0.5,
         ..Default::default()
     };
     assert!(camera.frame(&sheared, 1).is_err());
@@ -162,4 +162,49 @@ fn wrong_input_through_the_api_is_an_error() {
     let e = reader.read(&pipeline, 0).unwrap_err().to_string();
     assert!(!e.is_empty(), "{e}");
     eprintln!("{e}");
+}
+
+/// A stage's shear after pressing, drawn at equilibrium: the force follows the shear
+/// backbone's virgin branch while the stuck area shrinks (Yuan 2014, §3.3), and both stop
+/// changing once the contact slides.
+#[test]
+fn a_sheared_contact_carries_the_force_of_its_partial_slip() {
+    let loaded = load_ok(&protocol("portable-normal"));
+    let spec = sim::plant_spec(&loaded.protocol, &loaded.compiled).unwrap();
+    let mut camera = sim::ContactCamera::with_shear_and_twist(&spec, 320, 240).unwrap();
+    let depth_mm = 0.5 * spec.max_depth_mm;
+    let mut last = (0.0, 1.0);
+    for shear_mm in [0.02, 0.05, 0.1, 0.2] {
+        let pose = sim::ContactPose {
+            depth_mm,
+            shear_mm,
+            ..Default::default()
+        };
+        let f = camera.frame(&pose, 1).unwrap();
+        let stick = f.stick_fraction_shear.unwrap();
+        assert!(f.shear_n > last.0 && stick < last.1, "{shear_mm} mm: {f:?}");
+        assert_eq!(f.stick_fraction_twist, Some(1.0));
+        last = (f.shear_n, stick);
+    }
+    let (far, farther) = (
+        slide_at(&mut camera, depth_mm, 5.0),
+        slide_at(&mut camera, depth_mm, 10.0),
+    );
+    assert_eq!(far.stick_fraction_shear, Some(0.0));
+    assert_eq!(far.shear_n, farther.shear_n);
+    assert!(far.shear_n > last.0);
+    // Reversed, the same force the other way; no contact, no stick fraction.
+    let back = slide_at(&mut camera, depth_mm, -0.2);
+    assert_eq!(back.shear_n, -last.0);
+    let rest = slide_at(&mut camera, 0.0, 0.2);
+    assert_eq!((rest.shear_n, rest.stick_fraction_shear), (0.0, None));
+}
+
+fn slide_at(camera: &mut sim::ContactCamera, depth_mm: f64, shear_mm: f64) -> sim::ContactFrame {
+    let pose = sim::ContactPose {
+        depth_mm,
+        shear_mm,
+        ..Default::default()
+    };
+    camera.frame(&pose, 1).unwrap()
 }

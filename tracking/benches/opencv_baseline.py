@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The tracking pipeline of `analysis::tracking`, written the way labs write it today:
+"""The tracking pipeline of the `tracking` crate, written the way labs write it today:
 Python with OpenCV and NumPy, one thread. Used only as the speed baseline in BENCHMARKS.md.
 
 Same steps as the Rust core, with the library call for each:
@@ -13,7 +13,7 @@ It omits what the Rust core adds on top (hysteresis, fragment joining, merged-bl
 hypothesis voting, propagation, validation), so it is a lower bound on the cost of the
 same pipeline in Python.
 
-Usage: python3 analysis/benches/opencv_baseline.py ../shared/data/gelsight-mini-press [--scale 2]
+Usage: python3 tracking/benches/opencv_baseline.py ../shared/data/gelsight-mini-press [--scale 2]
 Prints the median ms per frame (decoding excluded) over all frames.
 
 With --whole FOLDER_OUT.csv (frames read from the folder as they are, no --scale): the whole

@@ -13,7 +13,7 @@ Scoring (the same for all): for every marker whose true centre lies at least
 (radius + 2 px) inside the frame, in frames 1.., the nearest reported position within
 0.3 spacing; rms of those errors, and the share of such markers found.
 
-Usage: python3 analysis/benches/opencv_precision.py DIR [--gelrig DIR/markers.csv]
+Usage: python3 tracking/benches/opencv_precision.py DIR [--gelrig DIR/markers.csv]
 """
 
 import csv

@@ -134,12 +134,13 @@ async fn the_image_folder_replays_frames_in_order() {
 /// Reads ../shared/data (skips when absent): the GelSight Mini sequence as a camera.
 #[tokio::test]
 async fn the_mini_sequence_plays_as_a_camera() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data/gelsight-mini-press");
-    if !dir.is_dir() {
-        eprintln!("skipped: {} is absent", dir.display());
+    let Some(dir) = testkit::shared_data(
+        env!("CARGO_MANIFEST_DIR"),
+        "gelsight-mini-press",
+        "the GelSight Mini sequence as a camera",
+    ) else {
         return;
-    }
+    };
     let mut cam =
         ImageFolderCamera::open(&dir, 60.0, Clock::new(ClockMode::Scaled { scale: 1000.0 }))
             .expect("opens");

@@ -98,16 +98,23 @@ fn the_pressed_flat_punches_match_an_independent_finite_element_solution() {
         // Frictionless: the simulator's exact κ.
         let free = model(layer, material.clone(), d_mm, 0.0, 0.0).normal_force_n(1.0) / unit;
         assert!(
-            (free / k_free - 1.0).abs() < 0.003,
+            (free / k_free - 1.0).abs() < 0.001,
             "{name}: frictionless κ {free} against the oracle's {k_free}"
         );
         // μ = 0.6: stuck over the whole face; the target is 2 %.
         let mut stuck_model = model(layer, material.clone(), d_mm, 0.6, 2.5 * d_mm);
         let stuck = stuck_model.normal_force_n(1.0) / unit;
         assert!(
-            (stuck / k_stuck - 1.0).abs() < 0.01,
+            (stuck / k_stuck - 1.0).abs() < 0.004,
             "{name}: stuck κ {stuck} against the oracle's {k_stuck}"
         );
+        // The published figure: the stuck/frictionless ratio within 0.3 % of the FE ratio.
+        let ratio = (stuck / free) / (k_stuck / k_free) - 1.0;
+        println!(
+            "{name}: stuck/frictionless ratio {:+.3} % from the FE ratio",
+            100.0 * ratio
+        );
+        assert!(ratio.abs() < 0.003, "{name}: ratio {:+.3} %", 100.0 * ratio);
         // μ between: never below frictionless, never above stuck.
         let partial = model(layer, material.clone(), d_mm, 0.2, 0.0).normal_force_n(1.0) / unit;
         assert!(
@@ -133,7 +140,7 @@ fn the_pressed_flat_punches_match_an_independent_finite_element_solution() {
             let sim = field.grid.sample(&field.ux, r * a, 0.0);
             line += &format!("  {u:.4} / {sim:.4}");
             assert!(
-                (sim - u).abs() < 0.02 * u.abs().max(0.1),
+                (sim - u).abs() < 0.011 * u.abs().max(0.1),
                 "{name}: u_r/δ at {r}a is {sim}, the oracle's {u}"
             );
         }
@@ -145,11 +152,11 @@ fn the_pressed_flat_punches_match_an_independent_finite_element_solution() {
 /// sides 5.05 and 5.45 mm (2.5 h and 2.7 h) from its 12.5 mm punch. The oracle bounds a
 /// square pad between two discs with free sides: the inscribed one (radius 11.3 mm, every
 /// side as near as the nearest) overstates the edges' effect, the circumscribed one (16.27
-/// mm, as far as the corners) understates it. The infinite layer's force is 0.05–2.0 %
-/// (frictionless) and 0.02–0.8 % (stuck) above the pad's (a free side softens it); the field
+/// mm, as far as the corners) understates it. The infinite layer's force is 0.05–2.1 %
+/// (frictionless) and 0.02–0.85 % (stuck) above the pad's (a free side softens it); the field
 /// near the sides is not bounded tightly (docs/explanation/simulated-bench.md, "Finite pads").
 #[test]
-fn the_portable_pads_free_sides_soften_its_punch_by_at_most_two_percent() {
+fn the_portable_pads_free_sides_soften_its_punch_as_the_fe_pads_do() {
     let (layer, material, d_mm) = (presets::PORTABLE_LAYER, presets::portable_material(), 12.5);
     let (a, h, nu) = (d_mm / 2.0, layer.thickness_mm, material.poisson_ratio);
     let unit = 2.0 * material.contact_modulus_mpa() * a;
@@ -157,7 +164,7 @@ fn the_portable_pads_free_sides_soften_its_punch_by_at_most_two_percent() {
     let stuck = model(layer, material.clone(), d_mm, 0.6, 0.0).normal_force_n(1.0) / unit;
     // (pad radius, the infinite layer's excess over the pad, frictionless and stuck, as the
     // oracle converges it: BENCHMARKS.md "Finite pads")
-    for (r_out, over_free, over_stuck) in [(11.3, 0.0202, 0.0084), (16.27, 0.0005, 0.0002)] {
+    for (r_out, over_free, over_stuck) in [(11.3, 0.0206, 0.0085), (16.27, 0.0005, 0.0002)] {
         let Some(fe) = oracle(
             a,
             h,
@@ -176,10 +183,10 @@ fn the_portable_pads_free_sides_soften_its_punch_by_at_most_two_percent() {
             100.0 * (stuck / k_stuck - 1.0)
         );
         // Within the simulator's own error against the infinite layer's oracle (the test
-        // above: 0.3 % frictionless, 1 % stuck) of the pad's softening.
+        // above: 0.1 % frictionless, 0.4 % stuck) of the pad's softening.
         for (name, sim, pad, over, tol) in [
-            ("frictionless", free, k_free, over_free, 0.003),
-            ("stuck", stuck, k_stuck, over_stuck, 0.01),
+            ("frictionless", free, k_free, over_free, 0.001),
+            ("stuck", stuck, k_stuck, over_stuck, 0.004),
         ] {
             let excess = sim / pad - 1.0;
             assert!(

@@ -7,8 +7,8 @@ use std::process::Command;
 use rundir::write::Status;
 
 use crate::support::{
-    SHIPPED, col, csv_rows, gelrig, image_size, load_ok, load_text, manifest, protocol,
-    run_virtual, runs_listing, shipped_text,
+    col, csv_rows, gelrig, image_size, load_ok, load_text, manifest, protocol, run_virtual,
+    runs_listing, shipped, shipped_text,
 };
 
 fn edit(text: &str, from: &str, to: &str) -> String {
@@ -18,9 +18,9 @@ fn edit(text: &str, from: &str, to: &str) -> String {
 
 #[test]
 fn every_shipped_protocol_dry_runs_to_completion() {
-    for name in SHIPPED {
+    for name in shipped() {
         let out = tempfile::tempdir().unwrap();
-        let loaded = load_ok(&protocol(name));
+        let loaded = load_ok(&protocol(&name));
         let (outcome, plan) = run_virtual(&loaded, out.path(), 1, None);
         assert_eq!(
             outcome.status,

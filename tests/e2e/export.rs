@@ -15,14 +15,11 @@ pub(crate) fn readers_available() -> bool {
         .stderr(Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
-    if !ok && std::env::var("GELRIG_REQUIRE_PEERS").is_ok_and(|v| v == "1") {
-        panic!(
-            "the MCAP test needs python3 with mcap and mcap-ros2-support (GELRIG_REQUIRE_PEERS=1)"
-        );
-    }
     if !ok {
-        println!(
-            "SKIP: the MCAP test needs python3 with mcap and mcap-ros2-support; pip install them"
+        testkit::skip(
+            testkit::Need::Peers,
+            "the MCAP and Parquet readers",
+            "they need python3 with mcap, mcap-ros2-support, pandas and pyarrow; pip install them",
         );
     }
     ok

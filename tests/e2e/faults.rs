@@ -15,7 +15,8 @@ use crate::support::{
 };
 
 /// Runs `script` (sh) in a private mount namespace where a tmpfs of `size` is mounted on
-/// `$FS`; `None` (with a visible skip line) where this machine allows no mount namespace.
+/// `$FS`; `None` (a logged skip; a failure under `GELRIG_REQUIRE_MOUNT=1`, as in CI) where
+/// this machine allows no mount namespace.
 fn in_small_fs(size: &str, script: &str, keep: &Path) -> Option<std::process::Output> {
     let body = format!(
         "set -e; FS=$(mktemp -d); mount -t tmpfs -o size={size} tmpfs \"$FS\"; export FS; \
@@ -38,7 +39,11 @@ fn in_small_fs(size: &str, script: &str, keep: &Path) -> Option<std::process::Ou
             );
         }
     }
-    println!("SKIP: no mount namespace for a small filesystem on this machine (unshare -rm / -m)");
+    testkit::skip(
+        testkit::Need::Mount,
+        "a full disk during a run",
+        "this machine allows no mount namespace for a small filesystem (unshare -rm / -m)",
+    );
     None
 }
 

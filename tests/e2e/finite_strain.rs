@@ -32,11 +32,11 @@ fn stuck(v: &serde_json::Value, name: &str) -> serde_json::Value {
         .expect("the stuck punch")
 }
 
-/// The simulator's stiffening table is the reference's file, and the reference, rerun on its
-/// coarser mesh, still says so (within its mesh error, 0.5 %): the portable punch 6.9 % stiffer
-/// at 5 % strain and 45 % at 30 %, the box punch 4.5 % at 5 % and 21 % at 20 %. Its sphere
-/// stays within 2 % of small strain to 2 mm, which is why curved indenters are not
-/// corrected.
+/// The simulator's stiffening table is the reference's file, and a fresh run of the
+/// reference on its coarser mesh reproduces that file's coarse level (within 1e-5) and the
+/// table within its mesh error (0.5 %): the portable punch 6.9 % stiffer at 5 % strain and
+/// 45 % at 30 %, the box punch 4.5 % at 5 % and 21 % at 20 %. Its sphere stays within 1 % of
+/// small strain to 2 mm, which is why curved indenters are not corrected.
 #[test]
 fn the_finite_strain_reference_is_the_simulators_table_and_reruns() {
     let text = std::fs::read_to_string(root().join("tests/peers/layer_finite_strain_fe.json"))
@@ -72,7 +72,24 @@ fn the_finite_strain_reference_is_the_simulators_table_and_reruns() {
     );
     assert_eq!(rerun["self_checks_passed"], true);
     for (name, a_over_h) in [("box", 4.75 / 4.2), ("portable", 6.25 / 2.0)] {
-        for (e, r) in ratios(&stuck(&rerun, name)) {
+        // Not circular: a fresh run of the oracle reproduces the committed file's own
+        // coarse-mesh level, depth by depth (the table is the file's finer level).
+        let committed = stuck(&file, name);
+        let coarse: Vec<f64> = committed["depths"]
+            .as_array()
+            .expect("depths")
+            .iter()
+            .map(|d| d["mesh"]["levels"][0].as_f64().expect("level 0"))
+            .collect();
+        let fresh = ratios(&stuck(&rerun, name));
+        assert_eq!(fresh.len(), coarse.len(), "{name}: depths");
+        for ((e, r), c) in fresh.iter().zip(&coarse) {
+            assert!(
+                (r - c).abs() < 1e-5 * c,
+                "{name} at {e}: the rerun's {r} against the committed coarse level's {c}"
+            );
+        }
+        for (e, r) in fresh {
             let s = flat_punch_stiffening(e, a_over_h);
             println!("{name} at {e}: rerun {r:.4}, table {s:.4}");
             assert!((r - s).abs() < 0.005 * s, "{name} at {e}: {r} vs {s}");
@@ -82,7 +99,7 @@ fn the_finite_strain_reference_is_the_simulators_table_and_reruns() {
     assert!(!sphere.is_empty());
     for d in sphere {
         let r = d["force_ratio"].as_f64().expect("ratio");
-        assert!((r - 1.0).abs() < 0.02, "sphere at {}: {r}", d["delta_mm"]);
+        assert!((r - 1.0).abs() < 0.01, "sphere at {}: {r}", d["delta_mm"]);
     }
 }
 
@@ -121,8 +138,9 @@ fn a_rig_that_asks_for_finite_strain_presses_the_portable_punch_harder() {
         let want = flat_punch_stiffening(depth[i] / 2.0, 6.25 / 2.0);
         let got = ff[i] / fs[i];
         println!("{} mm: {got:.4} (table {want:.4})", depth[i]);
+        // docs/explanation/finite-strain: within 0.2 % of the table (worst +0.14 %).
         assert!(
-            (got - want).abs() < 0.02 * want,
+            (got - want).abs() < 0.002 * want,
             "{} mm: {got} vs {want}",
             depth[i]
         );

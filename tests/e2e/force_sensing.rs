@@ -86,7 +86,8 @@ pub(crate) fn reported_fz_pct(run: &Path, sensor: &SensorFile, path: &Path, out:
 }
 
 #[test]
-fn calibrated_on_one_seed_the_field_reads_force_on_another_within_two_percent() {
+fn calibrated_on_one_seed_the_field_reads_force_within_one_percent_and_torque_within_two_and_a_half_on_another()
+ {
     let tmp = tempfile::tempdir().unwrap();
     let sensor = portable_sensor();
     assert_eq!(sensor.sensor, "portable");
@@ -125,7 +126,10 @@ fn calibrated_on_one_seed_the_field_reads_force_on_another_within_two_percent() 
         let g = &summary["gelsight_force"];
         for c in channels {
             let pct = g[c]["pct_range"].as_f64().unwrap();
-            assert!(pct < 2.5, "{name} {c}: {pct} % ({g})");
+            println!("{name} {c}: {pct:.2} % of the range");
+            // The moments' torque reading is the loosest (2.01 % measured).
+            let limit = if *c == "tz" { 2.5 } else { 1.0 };
+            assert!(pct < limit, "{name} {c}: {pct} % ({g})");
         }
         assert!(
             summary["sections"]
@@ -376,7 +380,8 @@ fn the_traction_map_reads_unseen_punches_within_five_percent() {
 /// the gel's thickness the command refuses. Reads ../shared/data (skips when absent).
 #[test]
 fn the_real_mini_sequence_gets_nominal_traction_maps() {
-    let Some(dir) = crate::support::mini_press_dir() else {
+    let Some(dir) = crate::support::mini_press_dir("traction maps of the real GelSight Mini press")
+    else {
         return;
     };
     let tmp = tempfile::tempdir().unwrap();

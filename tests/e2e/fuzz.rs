@@ -23,7 +23,7 @@ use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use crate::support::{SHIPPED, protocol, root, run_virtual};
+use crate::support::{protocol, root, run_virtual, shipped};
 
 /// A small deterministic generator (SplitMix64): the cases depend on the seed alone.
 struct Rng(u64);
@@ -282,13 +282,13 @@ fn mutated_protocols_and_rigs_never_panic_hang_or_run_away() {
         .iter()
         .map(|r| root().join(format!("protocols/rigs/{r}.yaml")))
         .collect();
-    let sources: Vec<(String, String)> = SHIPPED
-        .iter()
+    let sources: Vec<(String, String)> = shipped()
+        .into_iter()
         .map(|n| {
-            let text = std::fs::read_to_string(protocol(n))
+            let text = std::fs::read_to_string(protocol(&n))
                 .unwrap()
                 .replace("rig: rigs/sim.yaml", &format!("rig: {}", sim.display()));
-            (n.to_string(), text)
+            (n, text)
         })
         .collect();
     let (mut validated, mut runs, mut failures) = (0u64, 0u64, Vec::new());

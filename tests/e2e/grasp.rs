@@ -153,13 +153,14 @@ fn a_lighter_grip_alarms_only_where_the_true_margin_is_below_thirty_percent() {
     }
 }
 
-/// The target: over 10 seeds, `incipient` comes at least one frame before the can's
-/// gross slip in at least 9 trials.
+/// Over 10 seeds the warning's thresholds were never set on (they were set on seeds 1–10:
+/// `analysis/src/tactile.rs`), at the shipped 25 frames/s, `incipient` comes before the can's
+/// gross slip in every trial, at least 0.5 s ahead (measured on these seeds: 10 of 10, least
+/// lead 0.68 s, median 1.00 s; `grasp_study -- 10 from 11`).
 #[test]
-fn loosening_in_the_air_warns_before_the_can_slips_over_ten_seeds() {
-    let mut warned = 0;
-    let mut leads = Vec::new();
-    for seed in 1..=10 {
+fn loosening_in_the_air_warns_before_the_can_slips_on_ten_held_out_seeds() {
+    let mut leads_s = Vec::new();
+    for seed in 11..=20 {
         let tmp = tempfile::tempdir().unwrap();
         let dir = run_trials("lifting-can-slip", "3", 1, seed, tmp.path());
         let rows = csv_rows(&dir.join("tactile.csv"));
@@ -169,20 +170,21 @@ fn loosening_in_the_air_warns_before_the_can_slips_over_ten_seeds() {
             .unwrap_or_else(|| panic!("seed {seed}: the can never slipped"));
         let first = rows
             .iter()
-            .position(|r| r["gripping"] == "true" && r["state"] != "stick");
-        if let Some(k) = first.filter(|k| *k < gross) {
-            warned += 1;
-            leads.push(gross - k);
-        }
+            .position(|r| r["gripping"] == "true" && r["state"] != "stick")
+            .filter(|k| *k < gross)
+            .unwrap_or_else(|| panic!("seed {seed}: no warning before the slip"));
+        let t = |k: usize| rows[k]["t_ns"].parse::<f64>().unwrap() * 1e-9;
+        leads_s.push(t(gross) - t(first));
         // It dropped: back on the table before the lift came down.
         assert!(
             rows[gross..].iter().any(|r| r["true_on_table"] == "true"),
             "seed {seed}"
         );
     }
+    println!("leads before gross slip, s: {leads_s:.2?}");
     assert!(
-        warned >= 9,
-        "warned in {warned} of 10 (leads {leads:?} frames)"
+        leads_s.iter().all(|l| *l >= 0.5),
+        "a warning less than 0.5 s ahead: {leads_s:.2?}"
     );
 }
 

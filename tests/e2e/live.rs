@@ -19,11 +19,11 @@ fn browser() -> Option<&'static str> {
     if found {
         return Some("chromium");
     }
-    assert!(
-        !std::env::var("GELRIG_REQUIRE_BROWSER").is_ok_and(|v| v == "1"),
-        "the live-view tests need chromium (GELRIG_REQUIRE_BROWSER=1)"
+    testkit::skip(
+        testkit::Need::Browser,
+        "the live view in a browser",
+        "chromium is not installed (apt install chromium)",
     );
-    eprintln!("SKIP: chromium is not installed; the live-view browser tests did not run");
     None
 }
 

@@ -41,11 +41,11 @@ fn peers_available() -> bool {
     if python && socat {
         return true;
     }
-    let what = "python3 with pymodbus and pyserial, and socat";
-    if std::env::var("GELRIG_REQUIRE_PEERS").is_ok_and(|v| v == "1") {
-        panic!("the independent Modbus peer needs {what} (GELRIG_REQUIRE_PEERS=1)");
-    }
-    println!("SKIP: the independent Modbus peer needs {what}; install them to run these tests");
+    testkit::skip(
+        testkit::Need::Peers,
+        "the independent Modbus peer",
+        "it needs python3 with pymodbus and pyserial, and socat; install them",
+    );
     false
 }
 

@@ -4,7 +4,7 @@ use std::process::Command;
 
 use experiments::plan::{FORCE_ROW_BYTES, JOURNAL_LINE_BYTES, STEP_ROW_BYTES, plan};
 
-use crate::support::{SHIPPED, gelrig, load_ok, protocol};
+use crate::support::{gelrig, load_ok, protocol, shipped};
 
 fn close(a: f64, b: f64) -> bool {
     (a - b).abs() < 1e-6 * b.abs().max(1.0)
@@ -128,8 +128,8 @@ fn grasp_trials_repeat_with_their_own_trial_numbers() {
 
 #[test]
 fn every_shipped_protocol_plans_consistently() {
-    for name in SHIPPED {
-        let l = load_ok(&protocol(name));
+    for name in shipped() {
+        let l = load_ok(&protocol(&name));
         let p = plan(&l.protocol, &l.compiled, &l.rig);
         assert_eq!(p.steps.len() as u32, l.compiled.steps, "{name}");
         assert!(

@@ -26,23 +26,28 @@ pub(crate) fn sim_rig() -> PathBuf {
     root().join("protocols/rigs/sim.yaml")
 }
 
-/// Every shipped protocol's name.
-pub(crate) const SHIPPED: [&str; 14] = [
-    "box-normal-flat",
-    "box-shear-flat",
-    "box-normal-sphere",
-    "box-shear-sphere",
-    "box-normal-ellipse",
-    "box-normal-rectangle",
-    "box-normal-triangle",
-    "box-rotation",
-    "portable-normal",
-    "portable-shear",
-    "portable-rotation",
-    "lifting-can",
-    "lifting-can-slip",
-    "lifting-can-regrip",
-];
+/// Every shipped protocol's name: every `*.yaml` directly in `protocols/` (the rigs and
+/// materials live in subfolders), read from the folder so that a protocol added there is in
+/// every all-protocols test without anyone remembering to list it.
+pub(crate) fn shipped() -> Vec<String> {
+    let dir = root().join("protocols");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .filter_map(|entry| {
+            let path = entry.ok()?.path();
+            let name = path.file_name()?.to_str()?;
+            name.strip_suffix(".yaml").map(str::to_string)
+        })
+        .collect();
+    names.sort();
+    assert!(
+        names.len() >= 15,
+        "{}: {} protocols found",
+        dir.display(),
+        names.len()
+    );
+    names
+}
 
 /// Path of the `gelrig` binary of this build profile, built (or brought up to date) once
 /// per test process so the tests never run a stale binary. `GELRIG_BIN` names another
@@ -326,22 +331,14 @@ pub(crate) fn to_short_form(m: &mut serde_yaml::Mapping) {
     m.insert("trigger".into(), trigger.into());
 }
 
-/// The real GelSight Mini sequence in ../shared/data, or `None` after printing a visible
-/// skip line (CI has it; a fresh clone does not).
-pub(crate) fn mini_press_dir() -> Option<PathBuf> {
-    let dir = root().join("../shared/data/gelsight-mini-press");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    eprintln!(
-        "skipped: {} is absent (CI has it; a fresh clone does not)",
-        dir.display()
-    );
-    None
+/// The real GelSight Mini sequence in ../shared/data, or `None` after a logged skip of
+/// `what` (a failure under `GELRIG_REQUIRE_DATA=1`, as in CI; a fresh clone lacks it).
+pub(crate) fn mini_press_dir(what: &str) -> Option<PathBuf> {
+    testkit::shared_data(env!("CARGO_MANIFEST_DIR"), "gelsight-mini-press", what)
 }
 
 /// Whether `python3` can `import_line` (e.g. `import numpy, scipy`) for an independent peer
-/// needing `what`; where it cannot, a visible skip line — or a failure under
+/// needing `what`; where it cannot, a logged skip — or a failure under
 /// `GELRIG_REQUIRE_PEERS=1` (set by CI), where a missing peer must not pass silently.
 pub(crate) fn python_peer(import_line: &str, what: &str, install: &str) -> bool {
     let available = Command::new("python3")
@@ -350,10 +347,11 @@ pub(crate) fn python_peer(import_line: &str, what: &str, install: &str) -> bool 
         .status()
         .is_ok_and(|s| s.success());
     if !available {
-        if std::env::var("GELRIG_REQUIRE_PEERS").is_ok_and(|v| v == "1") {
-            panic!("this test needs {what} (GELRIG_REQUIRE_PEERS=1)");
-        }
-        println!("SKIP: this test needs {what}; {install}");
+        testkit::skip(
+            testkit::Need::Peers,
+            "a comparison with an independent peer",
+            &format!("it needs {what}; {install}"),
+        );
     }
     available
 }

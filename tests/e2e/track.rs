@@ -314,10 +314,10 @@ fn a_bad_frame_midway_keeps_every_frame_tracked_before_it() {
     assert_eq!(frames.into_iter().collect::<Vec<_>>(), ["0", "1", "2"]);
 }
 
-/// Reads ../shared/data (skips when absent).
+/// Reads ../shared/data (a logged skip when absent; a failure under GELRIG_REQUIRE_DATA=1).
 #[test]
 fn the_real_mini_sequence_tracks_end_to_end() {
-    let Some(dir) = crate::support::mini_press_dir() else {
+    let Some(dir) = crate::support::mini_press_dir("tracking the real GelSight Mini press") else {
         return;
     };
     let tmp = tempfile::tempdir().unwrap();
@@ -421,7 +421,7 @@ fn the_contact_region_of_a_sphere_matches_the_simulators_contact_radius() {
         assert!((area - std::f64::consts::PI * r * r).abs() < 1e-3 * area.max(1.0));
         let rel = r / a - 1.0;
         assert!(
-            rel.abs() <= 0.05,
+            rel.abs() <= 0.04,
             "step {step}, depth {depth} mm: radius {r} mm against the simulator's {a} mm"
         );
         // The sphere presses the centre of the view.

@@ -5,7 +5,7 @@ use std::process::Command;
 
 use experiments::Diagnostic;
 
-use crate::support::{SHIPPED, gelrig, load_ok, load_text, protocol, root, shipped_text};
+use crate::support::{gelrig, load_ok, load_text, protocol, root, shipped, shipped_text};
 
 /// Replaces `from` (which must occur) in `text`.
 fn edit(text: &str, from: &str, to: &str) -> String {
@@ -41,8 +41,8 @@ fn error_with(text: &str, needle: &str) -> Diagnostic {
 
 #[test]
 fn every_shipped_protocol_validates() {
-    for name in SHIPPED {
-        let loaded = load_ok(&protocol(name));
+    for name in shipped() {
+        let loaded = load_ok(&protocol(&name));
         assert!(loaded.compiled.steps > 0, "{name}");
         assert!(loaded.warnings.is_empty(), "{name}: {:?}", loaded.warnings);
     }
@@ -264,6 +264,25 @@ fn semantic_checks_catch_common_mistakes() {
     // A force window longer than the settle.
     let text = edit(&base, "force_window: 10 s", "force_window: 200 s");
     error_with(&text, "shorter than the capture's force window");
+    // A zero window (or `-0 s`) would make one sample a step's quasistatic value.
+    for zero in ["0 s", "-0 s", "0 ms"] {
+        let text = edit(
+            &base,
+            "force_window: 10 s",
+            &format!("force_window: {zero}"),
+        );
+        let d = error_with(&text, "makes a single sample the step's quasistatic value");
+        assert!(d.fix.contains("force_window: 10 s"), "{d}");
+    }
+    // A move's capture may ask for the latest reading.
+    let dir = tempfile::tempdir().unwrap();
+    let latest = format!(
+        "{}  - move: {{axis: normal, to: 0 mm, speed: 1 mm/s, capture: {{force_window: 0 s, frames: 1}}}}\n",
+        base.trim_end_matches('\n').to_owned() + "\n"
+    );
+    if let Err(d) = load_text(dir.path(), &latest) {
+        panic!("a move capturing the latest reading is refused: {d:?}");
+    }
     // A span that is not a whole number of steps.
     let text = edit(&base, "      step: 2 %", "      step: 3 %");
     let d = error_with(&text, "not a whole number of steps");
@@ -454,8 +473,8 @@ fn a_rig_that_does_not_resolve_and_protocols_by_name() {
     let o = Command::new(gelrig()).arg("protocols").output().unwrap();
     assert!(o.status.success());
     let list = String::from_utf8_lossy(&o.stdout);
-    for name in SHIPPED {
-        assert!(list.contains(name), "{name} not in {list}");
+    for name in shipped() {
+        assert!(list.contains(&name), "{name} not in {list}");
     }
     assert!(
         list.contains("Normal indentation of the box sensor with a 9.5 mm flat circular punch"),
@@ -510,13 +529,13 @@ fn an_adaptive_settle_is_checked_where_it_is_written() {
 /// slip points — so the comment cannot drift from what runs.
 #[test]
 fn every_shipped_protocol_states_the_values_it_assumes() {
-    for name in crate::support::SHIPPED {
-        let text = crate::support::shipped_text(name);
+    for name in shipped() {
+        let text = shipped_text(&name);
         assert!(
             text.starts_with("# Assumed values"),
             "{name}: no \"# Assumed values\" block at the top"
         );
-        let loaded = crate::support::load_ok(&crate::support::protocol(name));
+        let loaded = load_ok(&protocol(&name));
         let spec = experiments::protocol::plant_spec(&loaded.protocol, &loaded.compiled).unwrap();
         let m = &spec.contact.material;
         let terms: Vec<String> = m
@@ -552,4 +571,39 @@ fn every_shipped_protocol_states_the_values_it_assumes() {
             );
         }
     }
+}
+
+/// The README says how many protocols ship; the folder decides.
+#[test]
+fn the_readme_counts_the_shipped_protocols() {
+    const WORDS: [&str; 21] = [
+        "Zero",
+        "One",
+        "Two",
+        "Three",
+        "Four",
+        "Five",
+        "Six",
+        "Seven",
+        "Eight",
+        "Nine",
+        "Ten",
+        "Eleven",
+        "Twelve",
+        "Thirteen",
+        "Fourteen",
+        "Fifteen",
+        "Sixteen",
+        "Seventeen",
+        "Eighteen",
+        "Nineteen",
+        "Twenty",
+    ];
+    let n = shipped().len();
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let word = WORDS.get(n).copied().unwrap_or("Many");
+    assert!(
+        readme.contains(&format!("{word} protocols ship")),
+        "protocols/ holds {n} protocols; the README should say \"{word} protocols ship\""
+    );
 }

@@ -16,7 +16,7 @@ fn no_row_reported_measured_carries_a_wrong_identity() {
         let s = score(&c, Method::Centroid);
         assert!(s.refused.is_none(), "{}: refused: {:?}", c.name, s.refused);
         assert!(
-            s.identity() >= 0.999,
+            s.wrong == 0,
             "{}: {} of {} measured rows wrong",
             c.name,
             s.wrong,
@@ -97,7 +97,7 @@ fn pans_that_come_back_reversals_and_accelerations_never_run_away() {
                 let what = format!("seed {seed}, {}", c.name);
                 assert!(s.refused.is_none(), "{what}: refused: {:?}", s.refused);
                 assert!(
-                    s.identity() >= 0.999,
+                    s.wrong == 0,
                     "{what}: {} of {} measured rows wrong",
                     s.wrong,
                     s.claimed
@@ -128,7 +128,7 @@ fn whole_spacing_jumps_are_tracked_where_the_frames_tell_them() {
                 match seen {
                     Seen::Decidable => {
                         assert!(
-                            s.identity() >= 0.999,
+                            s.wrong == 0,
                             "{what}: {} of {} measured rows wrong",
                             s.wrong,
                             s.claimed

@@ -481,15 +481,11 @@ fn bad_references_and_frames_are_refused_with_the_fix() {
 
 /// The real GelSight Mini sequence, if `../shared/data` is beside the repository.
 fn mini_frames() -> Option<Vec<(usize, usize, Vec<u8>)>> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data/gelsight-mini-press");
-    if !dir.is_dir() {
-        eprintln!(
-            "skipped: {} is absent (CI has it; a fresh clone does not)",
-            dir.display()
-        );
-        return None;
-    }
+    let dir = testkit::shared_data(
+        env!("CARGO_MANIFEST_DIR"),
+        "gelsight-mini-press",
+        "tracking the real GelSight Mini press",
+    )?;
     let frames = (0..219)
         .map(|k| {
             let img = image::open(dir.join(format!("frame_{k:04}.png")))

@@ -160,7 +160,7 @@ impl Compiler<'_> {
             );
         }
         let (window, frames) = match &h.capture {
-            Some(c) => self.capture(c, &at.key("capture")),
+            Some(c) => self.capture(c, &at.key("capture"), true),
             None => (h.duration.s().max(0.0), 0),
         };
         if window > h.duration.s() + EPS {
@@ -359,7 +359,7 @@ impl Compiler<'_> {
         let to = self.value(s.to, s.axis, &axis, &at.key("to"));
         let step = self.value(s.step, s.axis, &axis, &at.key("step"));
         let speed = self.speed(s.speed, s.axis, &axis, &at.key("speed"));
-        let (window, frames) = self.capture(&s.capture, &at.key("capture"));
+        let (window, frames) = self.capture(&s.capture, &at.key("capture"), true);
         let settle = self.settle(&s.settle, Some(s.axis), window, &at.key("settle"));
         match settle {
             SettleSpec::Rate { .. } => self.need_force(at, "rate settling"),
@@ -532,7 +532,7 @@ impl Compiler<'_> {
         }
         let speed = self.speed(m.speed, m.axis, &axis, &at.key("speed"));
         let (window, frames) = match &m.capture {
-            Some(c) => self.capture(c, &at.key("capture")),
+            Some(c) => self.capture(c, &at.key("capture"), false),
             None => (0.0, 0),
         };
         let settle = match &m.settle {

@@ -190,12 +190,29 @@ impl Compiler<'_> {
         }
     }
 
-    pub(super) fn capture(&mut self, c: &Capture, path: &YamlPath) -> (f64, u32) {
+    /// A capture's force window and frames. `quasistatic`: the window gives a step's
+    /// quasistatic value (a `stepped` or `hold` capture: the mean of the settle's last
+    /// part, thesis §4.3), so on a rig with a force sensor a zero window — a single sample —
+    /// is refused; on a rig without one, `0 s` says there is no force to average (motion
+    /// alone). A `move`'s capture may ask for `0 s`, the latest reading.
+    pub(super) fn capture(
+        &mut self,
+        c: &Capture,
+        path: &YamlPath,
+        quasistatic: bool,
+    ) -> (f64, u32) {
         if c.force_window.s() < 0.0 {
             self.error(
                 &path.key("force_window"),
                 "the force window cannot be negative",
                 "write e.g. `10 s`",
+            );
+        }
+        if quasistatic && c.force_window.s() == 0.0 && self.rig.force.is_some() {
+            self.error(
+                &path.key("force_window"),
+                "a force window of 0 s makes a single sample the step's quasistatic value",
+                "average the settle's last part, e.g. `force_window: 10 s` (thesis §4.3)",
             );
         }
         if c.force_window.s() > 0.0 {

@@ -9,6 +9,10 @@
 //! cargo run -p claims -- --quick      # and re-measure the cheap figures (CI)
 //! cargo run --release -p claims -- --all --write docs/benchmarks/claims.md
 //! ```
+//!
+//! Each command runs in its own process group, so that a timeout stops `cargo run` and the
+//! program it started together; Ctrl-C stops `claims` but not the command it is waiting on
+//! (its log, `target/claims/<id>.log`, names it).
 
 mod ledger;
 mod measure;
@@ -68,6 +72,16 @@ fn run(args: Args) -> Result<bool> {
     let root = root()?;
     let path = args.ledger.unwrap_or_else(|| root.join("claims.yaml"));
     let ledger = Ledger::read(&path)?;
+    if let Some(unknown) = args
+        .only
+        .iter()
+        .find(|id| !ledger.claims.iter().any(|c| &c.id == *id))
+    {
+        anyhow::bail!(
+            "--only {unknown}: no such claim in {} (its ids are the `id:` lines)",
+            path.display()
+        );
+    }
     let problems = ledger::static_problems(&ledger, &root);
     for p in &problems {
         println!("ledger: {p}");

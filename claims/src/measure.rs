@@ -78,10 +78,14 @@ fn run_logged(m: &Measure, root: &Path, log: &Path) -> Result<String> {
             break status;
         }
         if started.elapsed() > limit {
-            // The whole group: `cargo run` and the program it started.
-            let _ = Command::new("kill")
+            // The whole group: `cargo run` and the program it started; the command alone if
+            // the group cannot be signalled (then `wait` cannot block on it either).
+            let group = Command::new("kill")
                 .args(["-KILL", "--", &format!("-{}", child.id())])
                 .status();
+            if !group.is_ok_and(|s| s.success()) {
+                let _ = child.kill();
+            }
             let _ = child.wait();
             bail!(
                 "`{}` did not finish within {} s (see {})",

@@ -17,7 +17,6 @@ the fix.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
@@ -32,10 +31,11 @@ from . import sim
 
 # The shipped protocols travel in the wheel (`gelrig/protocols`, the repository's
 # `protocols/`): found by name from any folder, as the command finds them beside its binary.
-# A `GELRIG_PROTOCOLS` the user set wins.
+# Registered in the native module for this process only (the environment is left alone: a
+# `gelrig` binary this process starts finds its own); a `GELRIG_PROTOCOLS` the user set wins.
 _SHIPPED = Path(__file__).with_name("protocols")
-if "GELRIG_PROTOCOLS" not in os.environ and (_SHIPPED / "rigs" / "sim.yaml").is_file():
-    os.environ["GELRIG_PROTOCOLS"] = str(_SHIPPED)
+if (_SHIPPED / "rigs" / "sim.yaml").is_file():
+    _gelrig.use_packaged_protocols(_SHIPPED)
 
 __version__ = _gelrig.__version__
 __all__ = [

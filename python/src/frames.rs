@@ -36,10 +36,11 @@ impl Rgb {
         let shape = array.shape();
         check_rgb(shape, what)?;
         self.bytes.clear();
-        match array.as_slice() {
-            Ok(s) => self.bytes.extend_from_slice(s),
-            // A strided view (a crop, a BGR→RGB flip): copied in order.
-            Err(_) => self.bytes.extend(array.as_array().iter().copied()),
+        match c_order(array) {
+            Some(s) => self.bytes.extend_from_slice(s),
+            // A strided view (a crop, a BGR→RGB flip) or a Fortran-ordered array (MATLAB
+            // data): copied in row-major order.
+            None => self.bytes.extend(array.as_array().iter().copied()),
         }
         self.width = shape[1];
         self.height = shape[0];
@@ -50,6 +51,17 @@ impl Rgb {
     pub(crate) fn view(&self) -> PyResult<gelrig::track::RgbView<'_>> {
         gelrig::track::RgbView::new(self.width, self.height, &self.bytes)
             .map_err(|e| PyValueError::new_err(e.to_string()))
+    }
+}
+
+/// The array's bytes when they are in row-major (C) order, as the tracker reads them; `None`
+/// for any other layout (numpy's `as_slice` also accepts Fortran order, whose bytes are the
+/// same pixels in another order).
+pub(crate) fn c_order<'a>(array: &'a PyReadonlyArray3<'_, u8>) -> Option<&'a [u8]> {
+    if array.is_c_contiguous() {
+        array.as_slice().ok()
+    } else {
+        None
     }
 }
 

@@ -36,6 +36,13 @@ pub(crate) fn gelrig_err(err: impl std::fmt::Display) -> PyErr {
     GelrigError::new_err(err.to_string())
 }
 
+/// Finds the shipped protocols in `dir` (the wheel's copy) when `$GELRIG_PROTOCOLS` is not
+/// set, for this process only (a subprocess does not inherit it).
+#[pyfunction]
+fn use_packaged_protocols(dir: std::path::PathBuf) -> bool {
+    gelrig::protocol::shipped::use_packaged(dir)
+}
+
 #[pymodule]
 fn _gelrig(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -55,6 +62,7 @@ fn _gelrig(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(runs::export, m)?)?;
     m.add_function(wrap_pyfunction!(runs::list_runs, m)?)?;
     m.add_function(wrap_pyfunction!(cli::cli, m)?)?;
+    m.add_function(wrap_pyfunction!(use_packaged_protocols, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

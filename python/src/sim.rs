@@ -183,6 +183,15 @@ impl Bench {
             twist_deg,
             centre_mm: (x_mm, y_mm),
         };
+        if [depth_mm, shear_mm, twist_deg, x_mm, y_mm]
+            .iter()
+            .any(|v| !v.is_finite())
+        {
+            return Err(PyValueError::new_err(format!(
+                "press({depth_mm}, shear_mm={shear_mm}, twist_deg={twist_deg}, x_mm={x_mm}, \
+                 y_mm={y_mm}): give finite numbers"
+            )));
+        }
         let seq = self.next_seq();
         let tangential = shear_mm != 0.0 || twist_deg != 0.0;
         if tangential && self.tangential.is_none() {

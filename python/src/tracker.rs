@@ -103,7 +103,8 @@ impl Tracker {
     ///
     /// A C-contiguous frame (what a camera, `cv2` or `np.asarray` hands over) is read in
     /// place with the GIL released, as OpenCV-Python reads its arrays: another thread must
-    /// not write into it meanwhile. A strided view (a crop, a channel flip) is copied first.
+    /// not write into it meanwhile. Any other layout (a crop, a channel flip, Fortran order)
+    /// is copied first, in row-major order.
     fn track(&mut self, py: Python<'_>, frame: PyReadonlyArray3<'_, u8>) -> PyResult<TrackResult> {
         let shape = frame.shape();
         frames::check_rgb(shape, "frame")?;
@@ -116,9 +117,9 @@ impl Tracker {
         }
         let (width, height) = self.size;
         let pipeline = &mut self.pipeline;
-        let bytes: &[u8] = match frame.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
+        let bytes: &[u8] = match frames::c_order(&frame) {
+            Some(s) => s,
+            None => {
                 self.frame.copy_from(&frame, "frame")?;
                 &self.frame.bytes
             }

@@ -44,6 +44,12 @@ def test_the_package_carries_every_shipped_protocol(tmp_path):
         cwd=tmp_path, env=env, capture_output=True, text=True, check=True,
     ).stdout.strip()
     assert Path(found) == (package / "portable-shear.yaml").resolve()
+    # Found without touching the environment a subprocess inherits.
+    leaked = subprocess.run(
+        [sys.executable, "-c", "import os, gelrig; print(os.environ.get('GELRIG_PROTOCOLS'))"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, check=True,
+    ).stdout.strip()
+    assert leaked == "None"
 
 
 def test_a_protocol_that_does_not_check_raises_with_its_diagnostics():

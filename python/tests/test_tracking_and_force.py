@@ -123,6 +123,23 @@ def test_the_force_reader_gives_track_sensors_reading(portable_sensor, runs_dir)
     assert max(errors) <= 0.01 * span, (max(errors), span)
 
 
+def test_a_frame_in_any_memory_order_tracks_the_same():
+    """Row-major frames are read in place; Fortran-ordered ones (MATLAB data) and strided
+    views are the same pixels, and must track to the same numbers."""
+    bench = gelrig.sim.Bench("portable", width=320, height=240)
+    ref, _, _ = bench.reference()
+    frame, _, _ = bench.press(0.3)
+    want = gelrig.Tracker(ref).track(frame)
+    for name, convert in [
+        ("fortran", np.asfortranarray),
+        ("strided", lambda a: np.ascontiguousarray(a[:, :, ::-1])[:, :, ::-1]),
+        ("padded", lambda a: np.pad(a, ((0, 0), (0, 5), (0, 0)))[:, :-5]),
+    ]:
+        got = gelrig.Tracker(convert(ref)).track(convert(frame))
+        assert np.array_equal(got.xy, want.xy), name
+        assert got.state == want.state, name
+
+
 def test_ten_thousand_track_calls_do_not_grow_memory():
     bench = gelrig.sim.Bench("portable", width=320, height=240)
     ref, _, _ = bench.reference()

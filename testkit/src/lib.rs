@@ -62,7 +62,8 @@ fn record(log: &Path, required: bool, need: Need, what: &str, missing: &str) {
         .create(true)
         .append(true)
         .open(log)
-        .and_then(|mut f| writeln!(f, "{line}"));
+        // One write of the whole line: tests run in parallel threads and processes.
+        .and_then(|mut f| f.write_all(format!("{line}\n").as_bytes()));
     if let Err(e) = written {
         eprintln!("(the skip could not be logged to {}: {e})", log.display());
     }

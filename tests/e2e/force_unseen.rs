@@ -82,13 +82,15 @@ fn with_no_flags_calibrate_chooses_by_indenters_left_out_and_reads_unseen_punche
     assert!(unseen.channels["fz_n"].pct_range < 5.0, "{unseen:?}");
     // Tz is the Nano17's noise on these runs (nothing twists): not scored.
     assert_eq!(choice.scored, ["fx_n", "fy_n", "fz_n"]);
-    // Held-out seed: the same shapes within 2 % of span, the unseen ones within 5 %.
+    // Held-out seed: the same shapes within 2 % of span, the unseen ones within 3 % (the
+    // issue's target 5 %; published 1.00 / 2.24 / 2.42 %, BENCHMARKS.md).
     for (name, limit) in [
         ("box-normal-flat", 2.0),
         ("box-shear-flat", 2.0),
         ("box-shear-sphere", 2.0),
-        ("box-normal-ellipse", 5.0),
-        ("box-normal-rectangle", 5.0),
+        ("box-normal-ellipse", 3.0),
+        ("box-normal-rectangle", 3.0),
+        ("box-normal-triangle", 3.0),
     ] {
         let dir = dry(name, 3, &tmp.path().join(name));
         let g = reported(&dir, &sensor, &out);

@@ -48,64 +48,67 @@ fn steps_against_truth(dir: &std::path::Path) -> Vec<(f64, f64, f64, f64, String
 fn adaptive_settling_finds_each_steps_equilibrium_within_a_percent_in_a_fraction_of_the_time() {
     let tmp = tempfile::tempdir().unwrap();
     let loaded = load_text(tmp.path(), &adaptive_box("sensor: {kind: box}")).unwrap();
-    let (o, _) = run_virtual(&loaded, tmp.path(), 1, None);
-    assert_eq!(o.status, Status::Completed, "{:?}", o.message);
-    let rows = steps_against_truth(&o.dir);
-    let steps = csv_rows(&o.dir.join("steps.csv"));
-    let mut settles = Vec::new();
-    let mut within = 0;
-    let mut in_contact = 0;
-    let mut beyond_3sd = Vec::new();
-    for (k, ((err, sd, settle, truth, verdict), row)) in rows.iter().zip(&steps).enumerate() {
-        settles.push(*settle);
-        // Unloaded to the contact origin the punch leaves the sunk gel, which recovers into
-        // it later: no record of the step shows that (docs/reference/protocol.md, "Choosing a settle rule").
-        if row["position"].parse::<f64>().unwrap() <= 0.0 {
-            continue;
+    // The published figures are over seeds 1–3 (BENCHMARKS.md, "Settle rules"): mean settle
+    // 42.1 s against the target's 45 s, 56 of 57 steps within 1 %.
+    let (mut settles, mut within, mut in_contact) = (Vec::new(), 0, 0);
+    for seed in 1..=3 {
+        let (o, _) = run_virtual(&loaded, &tmp.path().join(seed.to_string()), seed, None);
+        assert_eq!(o.status, Status::Completed, "{:?}", o.message);
+        let rows = steps_against_truth(&o.dir);
+        let steps = csv_rows(&o.dir.join("steps.csv"));
+        let mut beyond_3sd = Vec::new();
+        for (k, ((err, sd, settle, truth, verdict), row)) in rows.iter().zip(&steps).enumerate() {
+            settles.push(*settle);
+            // Unloaded to the contact origin the punch leaves the sunk gel, which recovers
+            // into it later: no record of the step shows that (docs/reference/protocol.md,
+            // "Choosing a settle rule").
+            if row["position"].parse::<f64>().unwrap() <= 0.0 {
+                continue;
+            }
+            in_contact += 1;
+            let step = k + 1;
+            assert!(
+                verdict == "converged" || k == 0,
+                "seed {seed}, step {step}: {verdict} (only the first step may wait out its max)"
+            );
+            let pct = 100.0 * err / truth.abs();
+            assert!(
+                pct <= 1.2,
+                "seed {seed}, step {step}: F∞ off by {pct:.2} % of {truth} N"
+            );
+            assert!(
+                *err <= 4.0 * sd,
+                "seed {seed}, step {step}: error {err} beyond 4σ ({sd})"
+            );
+            if *err > 3.0 * sd {
+                beyond_3sd.push(step);
+            }
+            if pct <= 1.0 {
+                within += 1;
+            }
         }
-        in_contact += 1;
+        // The σ each step claims: at most one step of a run beyond 3σ, none beyond 4σ
+        // (pressed with friction, seed 1's step 8 stops at 26.6 s, 1.1 % off at 3.3σ).
         assert!(
-            verdict == "converged" || k == 0,
-            "step {}: {verdict} (only the first step may wait out its max)",
-            k + 1
+            beyond_3sd.len() <= 1,
+            "seed {seed}: steps {beyond_3sd:?} beyond their 3σ"
         );
-        let pct = 100.0 * err / truth.abs();
-        assert!(
-            pct <= 1.2,
-            "step {}: F∞ off by {pct:.2} % of {truth} N",
-            k + 1
-        );
-        assert!(
-            *err <= 4.0 * sd,
-            "step {}: error {err} beyond 4σ ({sd})",
-            k + 1
-        );
-        if *err > 3.0 * sd {
-            beyond_3sd.push(k + 1);
-        }
-        if pct <= 1.0 {
-            within += 1;
-        }
+        // The run said which time constants later steps assumed.
+        let journal = std::fs::read_to_string(o.dir.join("journal.jsonl")).unwrap();
+        assert!(journal.contains("gel_time_constants"));
     }
+    let mean = settles.iter().sum::<f64>() / settles.len() as f64;
+    eprintln!(
+        "adaptive settle, seeds 1–3: mean {mean:.1} s; F∞ within 1 % on {within} of {in_contact} steps"
+    );
     assert!(
-        within * 10 >= in_contact * 9,
+        within + 1 >= in_contact,
         "F∞ within 1 % on {within} of {in_contact} steps"
     );
-    // The σ each step claims: at most one of the 19 steps beyond 3σ, none beyond 4σ. Pressed
-    // with friction (the default since 28 Nov) this seed's step 8 stops at 26.6 s, 1.1 % off
-    // at 3.3σ; BENCHMARKS.md ("Settle rules") counts the claim over three seeds.
     assert!(
-        beyond_3sd.len() <= 1,
-        "steps {beyond_3sd:?} beyond their 3σ"
+        mean <= 45.0,
+        "mean settle {mean:.1} s (target 45 s; fixed: 180 s)"
     );
-    let mean = settles.iter().sum::<f64>() / settles.len() as f64;
-    eprintln!("adaptive settle: mean {mean:.1} s, per step {settles:?}");
-    // The target (≤ 45 s) is over three seeds in BENCHMARKS.md (43.1 s); this seed's
-    // unloading step at 2 % depth waits longest (45.6 s here).
-    assert!(mean <= 48.0, "mean settle {mean:.1} s (fixed: 180 s)");
-    // The run said which time constants later steps assumed.
-    let journal = std::fs::read_to_string(o.dir.join("journal.jsonl")).unwrap();
-    assert!(journal.contains("gel_time_constants"));
 }
 
 #[test]

@@ -1,17 +1,31 @@
 //! The protocols shipped with gelrig, found by name (`gelrig run box-normal-flat`) and
 //! listed (`gelrig protocols`), so a newcomer needs no path into the source tree.
 //!
-//! Where they are: `$GELRIG_PROTOCOLS` if set; else `protocols/` beside a source checkout's
-//! `target/<profile>/gelrig`; else `../share/gelrig/protocols` beside an installed binary;
-//! else the checkout this binary was built from.
+//! Where they are: `$GELRIG_PROTOCOLS` if set; else the folder a package registered
+//! ([`use_packaged`]: the Python wheel's `gelrig/protocols`); else `protocols/` beside a
+//! source checkout's `target/<profile>/gelrig`; else `../share/gelrig/protocols` beside an
+//! installed binary; else the checkout this binary was built from.
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+static PACKAGED: OnceLock<PathBuf> = OnceLock::new();
+
+/// Registers the shipped protocols a package carries (the Python wheel's copy), for this
+/// process only: unlike setting `$GELRIG_PROTOCOLS`, nothing it starts inherits it. The
+/// first registration wins; `false` if one was already made.
+pub fn use_packaged(dir: PathBuf) -> bool {
+    PACKAGED.set(dir).is_ok()
+}
 
 /// The folder of shipped protocols, if one is found.
 pub fn dir() -> Option<PathBuf> {
     let mut candidates = Vec::new();
     if let Some(d) = std::env::var_os("GELRIG_PROTOCOLS") {
         candidates.push(PathBuf::from(d));
+    }
+    if let Some(d) = PACKAGED.get() {
+        candidates.push(d.clone());
     }
     if let Ok(exe) = std::env::current_exe()
         && let Some(bin) = exe.parent()

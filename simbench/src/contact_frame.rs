@@ -189,17 +189,8 @@ impl ContactCamera {
         };
         let (backbone, stick) =
             curve.ok_or_else(|| format!("no tangential table at depth {depth_mm} mm"))?;
-        let force = backbone.force(x);
-        let n = backbone.x.len();
-        let at = x.abs();
-        let fraction = if n == 0 || at >= backbone.x[n - 1] {
-            stick.last().copied().unwrap_or(0.0)
-        } else {
-            let i = backbone.x.partition_point(|v| *v <= at).clamp(1, n - 1);
-            let t = (at - backbone.x[i - 1]) / (backbone.x[i] - backbone.x[i - 1]);
-            stick[i - 1] * (1.0 - t) + stick[i] * t
-        };
-        Ok((force, Some(fraction.clamp(0.0, 1.0))))
+        let fraction = mechanics::response::stick_at(&backbone, &stick, x);
+        Ok((backbone.force(x), Some(fraction.clamp(0.0, 1.0))))
     }
 
     fn frame_of(&self, surface: Option<&SurfaceView>, seq: u64) -> ContactFrame {

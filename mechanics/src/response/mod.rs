@@ -111,18 +111,24 @@ pub struct TangentialTable {
     grid: Grid,
 }
 
+/// The stick fraction at displacement `x` (either sign) along `backbone`, whose points carry
+/// `stick` (interpolated linearly; the last value beyond the table: full slip).
+pub fn stick_at(backbone: &Backbone, stick: &[f64], x: f64) -> f64 {
+    let b = backbone;
+    let x = x.abs();
+    let n = b.x.len().min(stick.len());
+    if n == 0 || x >= b.x[n - 1] {
+        return stick.get(n.wrapping_sub(1)).copied().unwrap_or(0.0);
+    }
+    let i = b.x.partition_point(|v| *v <= x).clamp(1, n - 1);
+    let t = (x - b.x[i - 1]) / (b.x[i] - b.x[i - 1]);
+    stick[i - 1] * (1.0 - t) + stick[i] * t
+}
+
 impl TangentialTable {
     /// Stick fraction at displacement `x` (interpolated along the backbone).
     pub fn stick_at(&self, x: f64) -> f64 {
-        let b = &self.backbone;
-        let x = x.abs();
-        let n = b.x.len();
-        if n == 0 || x >= b.x[n - 1] {
-            return self.stick_fraction.last().copied().unwrap_or(0.0);
-        }
-        let i = b.x.partition_point(|v| *v <= x).clamp(1, n - 1);
-        let t = (x - b.x[i - 1]) / (b.x[i] - b.x[i - 1]);
-        self.stick_fraction[i - 1] * (1.0 - t) + self.stick_fraction[i] * t
+        stick_at(&self.backbone, &self.stick_fraction, x)
     }
 
     /// Adds `weight` × the tractions for force `f` on the backbone (sign carried, blended

@@ -3,6 +3,9 @@
 //! Target (issue 2): the shipped box normal protocol — twenty 3-minute settles, an hour on
 //! a real bench — finishes in under 10 s of wall time. Each iteration loads, plans and runs
 //! a shipped protocol into a fresh temporary run directory, exactly as `gelrig run` does.
+//! The table cache is on, as for `gelrig run`: the warm-up fills it and the samples read
+//! it (`GELRIG_NO_CACHE=1 cargo bench -p gelrig --bench dry_run` times runs that solve every
+//! table; docs/benchmarks/dry-runs.md, "The table cache").
 
 use std::path::Path;
 

@@ -59,7 +59,7 @@ pub fn hertz_tangential_ux(q0: f64, g_mpa: f64, nu: f64, a_mm: f64, x: f64, y: f
 
 /// A monotone backbone: force (or torque) against displacement (or angle) on virgin
 /// loading, tabulated, odd, saturating at its last value.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Backbone {
     /// Displacements, increasing from 0.
     pub x: Vec<f64>,

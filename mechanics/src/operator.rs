@@ -23,7 +23,7 @@ use crate::fft2::{C64, Fft2};
 use crate::greens;
 
 /// A square grid of cells.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Grid {
     /// Cells per side (even).
     pub n: usize,

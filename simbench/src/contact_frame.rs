@@ -85,15 +85,18 @@ impl ContactCamera {
                 "a {width}×{height} px camera: cameras deliver 16 to 8192 pixels a side"
             ));
         }
-        let model = ContactModel::build(ModelSpec {
-            contact: spec.contact.clone(),
-            max_depth_mm: spec.max_depth_mm,
-            shear: tangential,
-            twist: tangential,
-            field_view_mm: Some((spec.view_width_mm, spec.view_height_mm)),
-            pressing_friction: true,
-            quality: spec.quality,
-        })
+        let model = ContactModel::build_stored(
+            ModelSpec {
+                contact: spec.contact.clone(),
+                max_depth_mm: spec.max_depth_mm,
+                shear: tangential,
+                twist: tangential,
+                field_view_mm: Some((spec.view_width_mm, spec.view_height_mm)),
+                pressing_friction: true,
+                quality: spec.quality,
+            },
+            tablecache::store(),
+        )
         .map_err(|e| e.to_string())?;
         Ok(Self {
             model,

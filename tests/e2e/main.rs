@@ -7,6 +7,7 @@
 mod api;
 mod bonded_punch;
 mod bonded_sphere;
+mod cache;
 mod dry_run;
 mod export;
 mod faults;

@@ -28,6 +28,7 @@ macro_rules! err {
     }};
 }
 
+pub(crate) mod cache;
 pub(crate) mod calibrate;
 pub(crate) mod export;
 pub(crate) mod fit_material;
@@ -81,6 +82,10 @@ impl From<Exit> for std::process::ExitCode {
     about = "Tactile-force experiments on GelSight sensors, from YAML protocols"
 )]
 struct Cli {
+    /// Solve every contact table afresh instead of reading those an earlier run kept
+    /// (`gelrig cache`); the results are the same either way.
+    #[arg(long, global = true)]
+    no_cache: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -117,6 +122,8 @@ enum Command {
     Probe(probe::Cmd),
     /// Simulated devices on real transports: `gelrig sim serve --rig R.yaml`.
     Sim(sim::Cmd),
+    /// The simulated bench's solved contact tables kept between runs: where, how big; clear.
+    Cache(cache::Cmd),
 }
 
 /// Runs the command line `args` (the program's name first, as `std::env::args_os` gives it)
@@ -134,6 +141,9 @@ where
             return Exit(if e.use_stderr() { 2 } else { 0 });
         }
     };
+    if cli.no_cache {
+        tablecache::disable();
+    }
     let result = match cli.command {
         Command::Validate(c) => c.run(),
         Command::Plan(c) => c.run(),
@@ -150,6 +160,7 @@ where
         Command::View(c) => c.run(),
         Command::Probe(c) => c.run(),
         Command::Sim(c) => c.run(),
+        Command::Cache(c) => c.run(),
     };
     match result {
         Ok(code) => code,

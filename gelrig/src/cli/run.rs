@@ -191,6 +191,11 @@ pub(crate) fn execute(
             .resume(target.resume)
             .run_blocking(cancel.clone());
         let outcome = outcome.context("recording the run")?;
+        // A table cache that could not be written costs the next run a solve, not this
+        // run its data: said, not failed.
+        for p in tablecache::problems() {
+            err!("warning: {p}");
+        }
         out!("{}", outcome.dir.display());
         let status = outcome.status.name();
         match &outcome.message {

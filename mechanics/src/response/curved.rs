@@ -3,7 +3,7 @@
 
 use std::f64::consts::PI;
 
-use super::{ContactModel, Normal, tol};
+use super::{ContactModel, Entry, Normal, tol};
 use crate::Indenter;
 use crate::operator::{Compliance, Grid, LayerOperator, fast_size};
 use crate::solve::normal_unknown_area;
@@ -87,12 +87,20 @@ impl ContactModel {
         for (d, w) in self.depth_buckets(depth_mm) {
             let key = (d / h * 200.0).round() as u64;
             if !self.field_pressure.contains_key(&key) {
-                let mut p = self.pressure_on(op, key as f64 / 200.0 * h);
-                // Pressed with friction: what the loading path adds, once per bucket.
-                if self.curved_friction() {
-                    let extra = self.friction_pressure_on(op, key);
-                    p.iter_mut().zip(&extra).for_each(|(a, b)| *a += b);
-                }
+                let name = format!("field_pressure/{key}");
+                let p = match self.fetch(&name) {
+                    Some(Entry::FieldPressure(p)) if p.len() == out.len() => p,
+                    _ => {
+                        let mut p = self.pressure_on(op, key as f64 / 200.0 * h);
+                        // Pressed with friction: what the loading path adds, once per bucket.
+                        if self.curved_friction() {
+                            let extra = self.friction_pressure_on(op, key);
+                            p.iter_mut().zip(&extra).for_each(|(a, b)| *a += b);
+                        }
+                        self.keep(&name, || Entry::FieldPressure(p.clone()));
+                        p
+                    }
+                };
                 self.field_pressure.insert(key, p);
             }
             if let Some(p) = self.field_pressure.get(&key) {

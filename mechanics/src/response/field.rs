@@ -11,7 +11,7 @@
 use std::sync::Arc;
 
 use super::{
-    ContactModel, Field, Kind, LayerOperator, Normal, State, TangentialTable, face_mask,
+    ContactModel, Entry, Field, Kind, LayerOperator, Normal, State, TangentialTable, face_mask,
     flat_pressing,
 };
 use crate::operator::{Compliance, Grid};
@@ -208,6 +208,16 @@ impl ContactModel {
         }
         let op: Arc<LayerOperator> = Arc::clone(self.field_op.as_ref()?);
         let g = op.grid();
+        if let (Some(Entry::FieldPressure(p)), Some(Entry::Pressing(t))) = (
+            self.fetch("field_pressure/flat"),
+            self.fetch("pressing/flat"),
+        ) && p.len() == g.len()
+            && t.2 == g
+        {
+            self.field_pressure.insert(u64::MAX, p);
+            self.pressing.insert(u64::MAX, Arc::new(t));
+            return Some(());
+        }
         let c = &self.spec.contact;
         let fine_grid = Grid {
             n: 2 * g.n,
@@ -238,6 +248,10 @@ impl ContactModel {
                 .collect()
         };
         let (p, qx, qy) = (restrict(&p), restrict(&press.qx), restrict(&press.qy));
+        self.keep("field_pressure/flat", || Entry::FieldPressure(p.clone()));
+        self.keep("pressing/flat", || {
+            Entry::Pressing((qx.clone(), qy.clone(), g))
+        });
         self.field_pressure.insert(u64::MAX, p);
         self.pressing.insert(u64::MAX, Arc::new((qx, qy, g)));
         Some(())

@@ -32,17 +32,21 @@ use crate::contact::Contact;
 use crate::friction::Backbone;
 use crate::operator::{Compliance, Grid, LayerOperator, fast_size};
 use crate::solve::{Tolerance, normal_unknown_area};
-use crate::{Indenter, MechanicsError, punch};
+use crate::{Indenter, MechanicsError};
 
 mod curved;
 mod field;
 mod flat;
 mod pressed;
 mod shapes;
+mod tables;
 mod tangential;
 mod tilt;
 
+pub use tables::{TableEntry, TableStore, model_key};
 pub use tilt::{SlipTilt, tilt_arms_at, tilting_moments_nmm};
+
+use tables::Entry;
 
 use flat::flat_pressing;
 use shapes::{face_mask, matched_dx};
@@ -97,7 +101,7 @@ impl Default for Quality {
 }
 
 /// Tangential (shear or twist) behaviour of one contact state.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TangentialTable {
     /// Force (N) against stage displacement (mm), or torque (N·mm) against twist (rad),
     /// on virgin loading, ending at full slip.
@@ -198,7 +202,7 @@ pub struct State {
     pub torque_nmm: f64,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 enum Normal {
     /// Linear in depth: pressure and force per mm of depth.
     Flat {
@@ -242,6 +246,10 @@ pub struct ContactModel {
     flat_tilt_arms_mm: (f64, f64),
     /// A curved indenter's tilting-moment arms (mm) by depth bucket.
     tilt: BTreeMap<u64, (f64, f64)>,
+    /// Where solved tables are kept between models of the same spec, and this spec's key
+    /// there ([`tables`]).
+    store: Option<Arc<dyn TableStore>>,
+    store_key: String,
     /// How the shear's tilting arm moves under partial slip, by the shear tables' key:
     /// solved where a run asks for the arms, not with every table (a grasp reads none).
     slip_tilt: BTreeMap<u64, Arc<SlipTilt>>,
@@ -301,8 +309,19 @@ impl ContactModel {
         side
     }
 
-    /// Builds the model: every solve the spec asks for happens here.
+    /// Builds the model: every solve the spec asks for happens here (or later, on first
+    /// use, for the depth buckets a run reaches).
     pub fn build(spec: ModelSpec) -> Result<Self, MechanicsError> {
+        Self::build_stored(spec, None)
+    }
+
+    /// [`Self::build`], reading each table from `store` where it was kept by a model of
+    /// the same spec and giving it every table it solves ([`TableStore`]): the same model
+    /// bit for bit, without solving again.
+    pub fn build_stored(
+        spec: ModelSpec,
+        store: Option<Arc<dyn TableStore>>,
+    ) -> Result<Self, MechanicsError> {
         spec.contact.layer.check()?;
         spec.contact.material.check()?;
         spec.contact.indenter.check()?;
@@ -335,6 +354,12 @@ impl ContactModel {
             flat_tilt_arms_mm: (0.0, 0.0),
             tilt: BTreeMap::new(),
             slip_tilt: BTreeMap::new(),
+            store_key: if store.is_some() {
+                model_key(&spec)
+            } else {
+                String::new()
+            },
+            store,
             spec: spec.clone(),
         };
         let extent = c.indenter.footprint_mm();
@@ -347,66 +372,52 @@ impl ContactModel {
             };
             model.field_op = Some(Arc::new(LayerOperator::new(grid, h, mu_mod, nu)));
         }
+        // The normal table (and a flat punch's tilting arms): kept, or solved and kept.
+        let kept = match model.fetch("base") {
+            Some(Entry::Base {
+                normal,
+                flat_tilt_arms_mm,
+            }) if matches!(normal, Normal::Flat { .. }) == c.indenter.is_flat() => {
+                Some((normal, flat_tilt_arms_mm))
+            }
+            _ => None,
+        };
         if c.indenter.is_flat() {
             // The tangential tables live on a grid with `cells_flat` cells across the punch;
             // the normal pressure for fields is solved on the field grid when there is one.
-            let flat_op = |cells| flat::operator(&c.indenter, h, mu_mod, nu, cells);
-            let op = flat_op(spec.quality.cells_flat);
-            let grid = op.grid();
-            let mask = face_mask(&c.indenter, grid);
-            // Pressed with friction: the face holds the gel that the layer's coupling pushes
-            // outward, and presses harder for it (`crate::pressing`); or frictionless, with
-            // the friction found on that pressure one way.
-            let s = flat_pressing(&op, &mask, c.material.friction, spec.pressing_friction);
-            let mut force = s.force_n;
-            let free_on = flat::frictionless_force;
-            if spec.quality.extrapolate_flat && !matches!(c.indenter, Indenter::FlatCircle { .. }) {
-                // No exact κ for other faces: the frictionless force is extrapolated across
-                // grids (Richardson, first order: the face's edge singularity makes the
-                // force converge as the cell size), F ≈ 2 F(2n) − F(n), times the grid's
-                // ratio of the pressed-with-friction force to its own frictionless one, as
-                // for a circle. At 32 cells the grid alone was 2.8 % (ellipse), 3.8 %
-                // (rectangle) and 3.5 % (triangle) below the converged force; extrapolated,
-                // within 0.5 % (BENCHMARKS.md, "Non-circular punches";
-                // `examples/flat_shape_convergence.rs`).
-                let fine = flat_op(2 * spec.quality.cells_flat);
-                let fine_mask = face_mask(&c.indenter, fine.grid());
-                let coarse = free_on(&op, &mask);
-                let extrapolated = 2.0 * free_on(&fine, &fine_mask) - coarse;
-                force = extrapolated * s.force_n / coarse;
-            }
-            if let Indenter::FlatCircle { diameter_mm } = c.indenter {
-                // Exact stiffening (Nyström) for the frictionless force, times the grid's
-                // ratio of the pressed-with-friction force to its own frictionless one (the
-                // grid's discretisation error cancels in the ratio: 1.0883, 1.0882, 1.0876
-                // at 16, 32, 48 cells on the 9.5 mm box punch); the grid gives the shape.
-                let a = diameter_mm / 2.0;
-                let kappa = punch::layer_kappa(a / h, nu, 48);
-                let free = free_on(&op, &mask);
-                force = 2.0 * c.material.contact_modulus_mpa() * a * kappa * s.force_n / free;
-            }
-            // (The tangential tables' forces are scaled to this force: `tangential_table`.)
-            if spec.shear {
-                model.flat_tilt_arms_mm = tilt::flat_tilt_arms(&op, &mask);
-            }
-            model.normal = Normal::Flat {
-                grid,
-                mask,
-                p_per_mm: s.p,
-                force_per_mm: force,
+            let op = flat::operator(&c.indenter, h, mu_mod, nu, spec.quality.cells_flat);
+            let (normal, arms) = match kept {
+                Some(k) => k,
+                None => {
+                    let k = flat::flat_normal(&spec, &op);
+                    model.keep("base", || Entry::Base {
+                        normal: k.0.clone(),
+                        flat_tilt_arms_mm: k.1,
+                    });
+                    k
+                }
             };
+            model.normal = normal;
+            model.flat_tilt_arms_mm = arms;
             model.op = Some(op);
+            // A flat punch's tables at unit depth (key 0): everything scales with depth.
             if spec.shear {
-                let t = model.tangential_table(1.0, Kind::Shear);
-                model.shear.insert(0, Arc::new(t));
+                let t = model.solved_table(0, 1.0, Kind::Shear);
+                model.shear.insert(0, t);
             }
             if spec.twist {
-                let t = model.tangential_table(1.0, Kind::Twist);
-                model.twist.insert(0, Arc::new(t));
+                let t = model.solved_table(0, 1.0, Kind::Twist);
+                model.twist.insert(0, t);
             }
+        } else if let Some((normal, _)) = kept {
+            model.normal = normal;
         } else {
             model.normal = model.curved_table(max_depth);
             model.press_curved_table_with_friction()?;
+            model.keep("base", || Entry::Base {
+                normal: model.normal.clone(),
+                flat_tilt_arms_mm: (0.0, 0.0),
+            });
         }
         Ok(model)
     }
@@ -528,12 +539,23 @@ impl ContactModel {
             return Some(Arc::clone(t));
         }
         let d = (key as f64 / 200.0 * h).max(1e-4 * h);
-        let t = Arc::new(self.tangential_table(d, kind));
+        let t = self.solved_table(key, d, kind);
         match kind {
             Kind::Shear => self.shear.insert(key, Arc::clone(&t)),
             Kind::Twist => self.twist.insert(key, Arc::clone(&t)),
         };
         Some(t)
+    }
+
+    /// The tangential table of bucket `key`, solved at `depth_mm`: kept, or solved and kept.
+    fn solved_table(&mut self, key: u64, depth_mm: f64, kind: Kind) -> Arc<TangentialTable> {
+        let name = format!("{}/{key}", kind.name());
+        if let Some(Entry::Tangential(t)) = self.fetch(&name) {
+            return Arc::new(t);
+        }
+        let t = self.tangential_table(depth_mm, kind);
+        self.keep(&name, || Entry::Tangential(t.clone()));
+        Arc::new(t)
     }
 
     /// The operator on which the tangential problem at `depth_mm` is solved: the flat
@@ -591,6 +613,15 @@ impl ContactModel {
 enum Kind {
     Shear,
     Twist,
+}
+
+impl Kind {
+    fn name(self) -> &'static str {
+        match self {
+            Kind::Shear => "shear",
+            Kind::Twist => "twist",
+        }
+    }
 }
 
 /// Interpolates y(x) log–log between table points; below the table, a power law with

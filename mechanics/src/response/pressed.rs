@@ -13,7 +13,7 @@
 
 use std::sync::Arc;
 
-use super::{ContactModel, Normal, PressingTractions, quantise, tol};
+use super::{ContactModel, Entry, Normal, PressingTractions, quantise, tol};
 use crate::Indenter;
 use crate::MechanicsError;
 use crate::operator::{Compliance, Grid, LayerOperator};
@@ -41,7 +41,7 @@ fn path_tol() -> crate::solve::Tolerance {
 }
 
 /// The pressed state of a curved indenter at one depth, on the grid of its tables.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(super) struct Pressed {
     /// Pressure with friction, MPa.
     pub p: Vec<f64>,
@@ -195,6 +195,11 @@ impl ContactModel {
         if let Some(p) = self.pressed.get(&key) {
             return p.clone();
         }
+        let name = format!("pressed/{key}");
+        if let Some(Entry::Pressed(p)) = self.fetch(&name) {
+            self.pressed.insert(key, p.clone());
+            return p;
+        }
         let h = self.spec.contact.layer.thickness_mm;
         let depth_mm = (key as f64 / 200.0 * h).max(1e-4 * h);
         let op = self.op_for(depth_mm);
@@ -225,6 +230,7 @@ impl ContactModel {
                 grid: op.grid(),
             },
         };
+        self.keep(&name, || Entry::Pressed(state.clone()));
         self.pressed.insert(key, state.clone());
         state
     }
@@ -259,6 +265,12 @@ impl ContactModel {
         if let Some(e) = self.pressing.get(&key) {
             return Arc::clone(e);
         }
+        let name = format!("pressing/{key}");
+        if let Some(Entry::Pressing(e)) = self.fetch(&name) {
+            let e = Arc::new(e);
+            self.pressing.insert(key, Arc::clone(&e));
+            return e;
+        }
         let e = if self.curved_friction() {
             let s = self.pressed(key);
             (s.qx, s.qy, s.grid)
@@ -282,6 +294,7 @@ impl ContactModel {
             });
             (s.qx, s.qy, g)
         };
+        self.keep(&name, || Entry::Pressing(e.clone()));
         let e = Arc::new(e);
         self.pressing.insert(key, Arc::clone(&e));
         e

@@ -1,7 +1,7 @@
 //! The contact model against exact results and its own invariants.
 
 use super::*;
-use crate::{Layer, Material, PronyTerm};
+use crate::{Layer, Material, PronyTerm, punch};
 
 /// The box gel's layer and material (h varies) under `indenter`.
 pub(super) fn contact(indenter: Indenter, h: f64) -> Contact {

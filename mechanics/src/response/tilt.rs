@@ -19,7 +19,7 @@ use std::f64::consts::PI;
 use std::sync::Arc;
 
 use super::shapes::{face_mask, matched_dx};
-use super::{ContactModel, Kind, Normal, quantise};
+use super::{ContactModel, Entry, Kind, Normal, quantise};
 use crate::Indenter;
 use crate::operator::{Compliance, Grid, LayerOperator};
 #[cfg(test)]
@@ -154,7 +154,7 @@ pub(super) fn tilt_functional(op: &LayerOperator, contact: &[bool]) -> (Vec<f64>
 
 /// How a sheared contact's tilting arm moves from its stuck value to full slip. The default
 /// has no full-slip arm and no progress: the arm stays at its stuck value.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SlipTilt {
     /// The arm at full slip along x, mm: the sliding tractions μp along the shear with the
     /// pressure's own feedback on them ([`full_slip_arm`]). NaN where it was not found.
@@ -399,8 +399,16 @@ impl ContactModel {
             let (bx, by) = match self.tilt.get(&key) {
                 Some(a) => *a,
                 None => {
-                    // Buckets start at 1 (`depth_buckets` leaves out zero depth).
-                    let a = self.footprint_tilt_arms(key as f64 / 200.0 * h);
+                    let name = format!("tilt/{key}");
+                    let a = match self.fetch(&name) {
+                        Some(Entry::Tilt(a)) => a,
+                        _ => {
+                            // Buckets start at 1 (`depth_buckets` leaves out zero depth).
+                            let a = self.footprint_tilt_arms(key as f64 / 200.0 * h);
+                            self.keep(&name, || Entry::Tilt(a));
+                            a
+                        }
+                    };
                     self.tilt.insert(key, a);
                     a
                 }
@@ -426,6 +434,12 @@ impl ContactModel {
         };
         if let Some(s) = self.slip_tilt.get(&key) {
             return Some(Arc::clone(s));
+        }
+        let name = format!("slip_tilt/{key}");
+        if let Some(Entry::SlipTilt(s)) = self.fetch(&name) {
+            let s = Arc::new(s);
+            self.slip_tilt.insert(key, Arc::clone(&s));
+            return Some(s);
         }
         // The depth the table was solved at: a flat punch's at unit depth.
         let d = if self.is_flat() {
@@ -461,6 +475,7 @@ impl ContactModel {
             };
             slip_tilt(&op, &face, &p, mu, &table.pressing, &table.tractions)
         };
+        self.keep(&name, || Entry::SlipTilt(s.clone()));
         let s = Arc::new(s);
         self.slip_tilt.insert(key, Arc::clone(&s));
         Some(s)

@@ -275,17 +275,22 @@ impl Plant {
             ..needs
         };
         let prony = Prony::new(terms).map_err(|e| RigError::Plant(e.to_string()))?;
-        let model = ContactModel::build(ModelSpec {
-            contact: spec.contact.clone(),
-            max_depth_mm: spec.max_depth_mm,
-            shear: needs.shear,
-            twist: needs.twist,
-            field_view_mm: needs
-                .fields
-                .then_some((spec.view_width_mm, spec.view_height_mm)),
-            pressing_friction: geometry.pressing_friction,
-            quality: spec.quality,
-        })
+        // Tables kept by an earlier run of the same contact are read, not solved again
+        // (`tablecache`; the same model bit for bit).
+        let model = ContactModel::build_stored(
+            ModelSpec {
+                contact: spec.contact.clone(),
+                max_depth_mm: spec.max_depth_mm,
+                shear: needs.shear,
+                twist: needs.twist,
+                field_view_mm: needs
+                    .fields
+                    .then_some((spec.view_width_mm, spec.view_height_mm)),
+                pressing_friction: geometry.pressing_friction,
+                quality: spec.quality,
+            },
+            tablecache::store(),
+        )
         .map_err(|e| RigError::Plant(e.to_string()))?;
         // A sphere pressed by a stage: its contact shrinks when the stage backs off. (The
         // treatment is for axisymmetric contacts: a cylinder's line contact, and a grasp's

@@ -10,5 +10,6 @@ pub mod diag;
 pub mod load;
 pub mod plan;
 pub mod protocol;
+pub mod sim_models;
 
 pub use diag::{Diagnostic, Severity};

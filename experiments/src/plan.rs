@@ -119,6 +119,8 @@ pub struct Plan {
     pub bytes: Range,
     /// Bytes of one frame, upper bound.
     pub frame_bytes: u64,
+    /// What a simulated bench solves and leaves out (none on a real rig).
+    pub sim: Option<crate::sim_models::SimModels>,
 }
 
 /// Where an axis may be: exactly at an offset from its origin (whose absolute place may be
@@ -422,6 +424,7 @@ pub fn plan(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> Plan {
         axes_rows: rec.axes_rows,
         bytes,
         frame_bytes,
+        sim: crate::sim_models::sim_models(protocol, compiled, rig),
     }
 }
 
@@ -562,6 +565,10 @@ impl Plan {
                 ""
             }
         );
+        if let Some(sim) = &self.sim {
+            let _ = writeln!(o);
+            o.push_str(&sim.render());
+        }
         o
     }
 }

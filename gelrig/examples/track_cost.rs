@@ -33,7 +33,10 @@ fn frames() -> Result<(Vec<u8>, Vec<Vec<u8>>), String> {
     }
     let path = protocol::shipped::resolve("box-normal-flat".as_ref()).0;
     let set = vec!["indenter={\"shape\": \"sphere\", \"diameter\": \"12.68 mm\"}".to_string()];
-    let edit = protocol::Overrides { set, name: None };
+    let edit = protocol::Overrides {
+        set,
+        ..Default::default()
+    };
     let loaded = protocol::load_with_overrides(&path, None, &Default::default(), &edit)
         .map_err(|d| format!("{d:?}"))?;
     let spec = sim::plant_spec(&loaded.protocol, &loaded.compiled)?;

@@ -22,7 +22,7 @@
 //! assert!(plan.duration_s.min > 3600.0);
 //!
 //! // A protocol edited from the command line is checked the same way.
-//! let edit = protocol::Overrides { set: vec!["indenter.diameter=1000mm".into()], name: None };
+//! let edit = protocol::Overrides { set: vec!["indenter.diameter=1000mm".into()], ..Default::default() };
 //! let refused = protocol::load_with_overrides(&path, None, &Default::default(), &edit);
 //! assert!(refused.is_err());
 //! ```
@@ -211,7 +211,10 @@ pub mod reports {
 pub mod sim {
     pub use experiments::protocol::plant_spec;
     pub use simbench::bench;
-    pub use simbench::{ContactCamera, ContactFrame, ContactPose, MarkerLayout, PlantSpec};
+    pub use simbench::{
+        ContactCamera, ContactFrame, ContactPose, Fidelity, MarkerLayout, PlantSpec, Quality,
+        quality_for,
+    };
 }
 
 /// The live view's page and server (`--live`, `gelrig view`).

@@ -85,6 +85,7 @@ impl Protocol {
                 .map(|(k, v)| format!("{k}={v}"))
                 .collect(),
             name,
+            fidelity: None,
         };
         let budget = Default::default();
         let result = py.detach(|| {

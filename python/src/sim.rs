@@ -97,7 +97,11 @@ impl Bench {
             let json = serde_json::to_string(&ind).map_err(gelrig_err)?;
             set.push(format!("indenter={json}"));
         }
-        let overrides = Overrides { set, name: None };
+        let overrides = Overrides {
+            set,
+            name: None,
+            fidelity: None,
+        };
         let built = py.detach(
             || -> Result<(PlantSpec, (u32, u32), ContactCamera), String> {
                 let loaded = gelrig::protocol::load_with_overrides(

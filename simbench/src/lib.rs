@@ -38,5 +38,15 @@ pub use mechanics::response::Quality;
 pub use open::{OpenRequest, OpenedDevice, Rig, open};
 pub use plant::{MarkerLayout, PlantSpec};
 pub use render::{Renderer, SurfaceView, marker_reference_positions_mm};
+pub use rig::config::Fidelity;
 pub use scenes::{Look, Motion, Scene};
 pub use twin_plant::TwinPlant;
+
+/// The contact model's resolution at a fidelity level (a rig's `sim: {fidelity}`).
+pub fn quality_for(fidelity: Fidelity) -> Quality {
+    match fidelity {
+        Fidelity::Fast => Quality::fast(),
+        Fidelity::Default => Quality::default(),
+        Fidelity::Reference => Quality::reference(),
+    }
+}

@@ -92,10 +92,11 @@ impl<'a> SharedPlant<'a> {
         let req = self.req;
         // Any clock will do: on a mixed rig (real stages, a rendered camera) the simulated
         // elastomer runs in real time beside the real devices.
-        let spec = req.plant.clone().ok_or_else(|| RigError::Unsupported {
+        let mut spec = req.plant.clone().ok_or_else(|| RigError::Unsupported {
             device: what.to_string(),
             detail: "a simulated device needs the sensor and indenter description".into(),
         })?;
+        spec.quality = crate::quality_for(self.config.fidelity());
         let geometry = BenchGeometry::of(self.config, what)?;
         // Build only what the opened devices will ask for.
         let needs = PlantNeeds {

@@ -47,6 +47,10 @@ impl TwinPlant {
                     device: "twin plant".into(),
                     detail: format!("rig `{}` has no force sensor to read the plant", rig.name),
                 })?;
+        let spec = PlantSpec {
+            quality: crate::quality_for(rig.fidelity()),
+            ..spec
+        };
         Ok(Self {
             plant: Plant::new(spec, geometry, needs, seed)?,
             range,

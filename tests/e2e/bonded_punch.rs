@@ -43,7 +43,18 @@ fn oracle(a_mm: f64, h_mm: f64, nu: f64, extra: &[&str]) -> Option<serde_json::V
     Some(v)
 }
 
-fn model(layer: Layer, mut material: Material, d_mm: f64, mu: f64, view_mm: f64) -> ContactModel {
+fn model(layer: Layer, material: Material, d_mm: f64, mu: f64, view_mm: f64) -> ContactModel {
+    model_at(layer, material, d_mm, mu, view_mm, Quality::default())
+}
+
+fn model_at(
+    layer: Layer,
+    mut material: Material,
+    d_mm: f64,
+    mu: f64,
+    view_mm: f64,
+    quality: Quality,
+) -> ContactModel {
     material.friction = mu;
     ContactModel::build(ModelSpec {
         contact: Contact {
@@ -56,7 +67,7 @@ fn model(layer: Layer, mut material: Material, d_mm: f64, mu: f64, view_mm: f64)
         twist: false,
         field_view_mm: (view_mm > 0.0).then_some((view_mm, view_mm)),
         pressing_friction: true,
-        quality: Quality::default(),
+        quality,
     })
     .expect("builds")
 }
@@ -115,6 +126,23 @@ fn the_pressed_flat_punches_match_an_independent_finite_element_solution() {
             100.0 * ratio
         );
         assert!(ratio.abs() < 0.003, "{name}: ratio {:+.3} %", 100.0 * ratio);
+        // Every fidelity level against the oracle (docs/benchmarks/simulator.md, "Fidelity
+        // levels"): the stuck/frictionless ratio, each level's own. A circle's frictionless
+        // force is the exact κ at every level; the stuck one is the grid's.
+        for (level, quality, allowed) in [
+            ("fast", Quality::fast(), 0.01),
+            ("reference", Quality::reference(), 0.003),
+        ] {
+            let at = |mu: f64| {
+                model_at(layer, material.clone(), d_mm, mu, 0.0, quality).normal_force_n(1.0) / unit
+            };
+            let r = (at(0.6) / at(0.0)) / (k_stuck / k_free) - 1.0;
+            println!(
+                "{name}: at fidelity {level}, stuck/frictionless {:+.3} % from the FE ratio",
+                100.0 * r
+            );
+            assert!(r.abs() < allowed, "{name} at {level}: {:+.3} %", 100.0 * r);
+        }
         // μ between: never below frictionless, never above stuck.
         let partial = model(layer, material.clone(), d_mm, 0.2, 0.0).normal_force_n(1.0) / unit;
         assert!(

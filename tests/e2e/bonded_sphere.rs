@@ -90,11 +90,32 @@ fn oracle(r_mm: f64, h_mm: f64, nu: f64, depths_mm: &[f64]) -> Option<Vec<Fe>> {
 
 fn model(
     layer: Layer,
-    mut material: Material,
+    material: Material,
     r_mm: f64,
     max_mm: f64,
     mu: f64,
     friction: bool,
+) -> ContactModel {
+    model_at(
+        layer,
+        material,
+        (r_mm, max_mm),
+        mu,
+        friction,
+        Some((24.0, 24.0)),
+        Quality::default(),
+    )
+}
+
+/// A sphere of radius `r_mm` pressed up to `max_mm`, at `quality`, with fields over `view`.
+fn model_at(
+    layer: Layer,
+    mut material: Material,
+    (r_mm, max_mm): (f64, f64),
+    mu: f64,
+    friction: bool,
+    view: Option<(f64, f64)>,
+    quality: Quality,
 ) -> ContactModel {
     material.friction = mu;
     ContactModel::build(ModelSpec {
@@ -108,9 +129,9 @@ fn model(
         max_depth_mm: max_mm,
         shear: false,
         twist: false,
-        field_view_mm: Some((24.0, 24.0)),
+        field_view_mm: view,
         pressing_friction: friction,
-        quality: Quality::default(),
+        quality,
     })
     .expect("builds")
 }
@@ -200,6 +221,32 @@ fn a_sphere_pressed_stuck_matches_an_independent_finite_element_solution() {
                     fe.ur_stuck[k]
                 );
             }
+        }
+        // Every fidelity level against the oracle at the deepest depth (docs/benchmarks/
+        // simulator.md, "Fidelity levels"): each level's own stuck/frictionless ratio.
+        let (deepest, fe_deepest) = (max, &fe[fe.len() - 1]);
+        for (level, quality, allowed) in [
+            ("fast", Quality::fast(), 0.02),
+            ("reference", Quality::reference(), 0.003),
+        ] {
+            let force = |mu: f64, friction: bool| {
+                model_at(
+                    layer,
+                    material.clone(),
+                    (r_mm, max),
+                    mu,
+                    friction,
+                    None,
+                    quality,
+                )
+                .normal_force_n(deepest)
+            };
+            let r = force(1e3, true) / force(1e3, false) / fe_deepest.ratio - 1.0;
+            println!(
+                "{name} at {deepest} mm, fidelity {level}: stuck/frictionless {:+.3} % from the FE ratio",
+                100.0 * r
+            );
+            assert!(r.abs() < allowed, "{name} at {level}: {:+.3} %", 100.0 * r);
         }
         // A real gel's μ = 0.6 sticks over most of the contact: no more than full stick,
         // and past the frictionless force.

@@ -188,3 +188,101 @@ fn cli_prints_the_plan() {
     let v: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
     assert_eq!(v["steps"].as_array().map(|a| a.len()), Some(20));
 }
+
+/// `gelrig plan` says what the simulated bench solves and leaves out, at which fidelity and
+/// what that level was measured to cost; `--fidelity` changes the level, a run records it in
+/// its `rig.yaml`, and a rig without a simulated bench refuses it.
+#[test]
+fn the_plan_lists_the_simulated_models_and_the_fidelity() {
+    let plan = |name: &str, extra: &[&str]| {
+        let mut args = vec![std::ffi::OsString::from("plan"), protocol(name).into()];
+        args.extend(extra.iter().map(std::ffi::OsString::from));
+        crate::support::gelrig_ok(args)
+    };
+    let flat = plan("box-normal-flat", &[]);
+    assert!(
+        flat.contains("simulated bench, fidelity default (32 cells"),
+        "{flat}"
+    );
+    assert!(
+        flat.contains("solves     normal  flat punch, 32 cells"),
+        "{flat}"
+    );
+    assert!(flat.contains("solves     fields  256×256 grid"), "{flat}");
+    assert!(flat.contains("leaves out shear   no shear stage"), "{flat}");
+    assert!(
+        flat.contains("leaves out twist   no rotation stage"),
+        "{flat}"
+    );
+    assert!(flat.contains("expected   step forces within"), "{flat}");
+    let fast = plan("box-normal-sphere", &["--fidelity", "fast"]);
+    assert!(
+        fast.contains("simulated bench, fidelity fast (32 cells"),
+        "{fast}"
+    );
+    assert!(
+        fast.contains("8 cells across 1.2 contact diameters"),
+        "{fast}"
+    );
+    let can = plan("lifting-can", &["--fidelity", "reference"]);
+    assert!(
+        can.contains("solves     shear   partial-slip backbone (the grasp"),
+        "{can}"
+    );
+    assert!(can.contains("solves     twist"), "{can}");
+    assert!(!can.contains("leaves out"), "{can}");
+    // The JSON plan carries the same.
+    let v: serde_json::Value =
+        serde_json::from_str(&plan("box-shear-flat", &["--json", "--fidelity", "fast"])).unwrap();
+    assert_eq!(v["sim"]["fidelity"], "fast");
+    // A run records the level it ran at.
+    let tmp = tempfile::tempdir().unwrap();
+    crate::support::gelrig_ok([
+        std::ffi::OsStr::new("run"),
+        "--quiet".as_ref(),
+        "--fidelity".as_ref(),
+        "fast".as_ref(),
+        "--out".as_ref(),
+        tmp.path().as_os_str(),
+        protocol("box-normal-flat").as_os_str(),
+    ]);
+    let dir = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .find(|e| e.path().join("rig.yaml").is_file())
+        .unwrap()
+        .path();
+    let rig: rig::config::RigConfig = rig::config::RigConfig::from_yaml_str(
+        &std::fs::read_to_string(dir.join("rig.yaml")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(rig.fidelity(), rig::config::Fidelity::Fast);
+    // A rig without a simulated bench has nothing to resolve.
+    let real = tmp.path().join("manual.yaml");
+    std::fs::write(
+        &real,
+        "name: manual\naxes:\n  normal: {driver: manual, travel: [0 mm, 25 mm], max_speed: 1 mm/s, resolution: 0.001 mm}\n",
+    )
+    .unwrap();
+    let refused = Command::new(gelrig())
+        .args(["plan", "--fidelity", "fast", "--rig"])
+        .arg(&real)
+        .arg(protocol("box-normal-flat"))
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("has no simulated bench"), "{err}");
+    // An unknown level is refused by the command line, naming the three.
+    let bad = Command::new(gelrig())
+        .args(["plan", "--fidelity", "fastest"])
+        .arg(protocol("box-normal-flat"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("fast, default or reference"),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
+}

@@ -78,11 +78,16 @@ pub(crate) fn gelrig() -> PathBuf {
 
 /// `gelrig runs DIR`'s stdout.
 pub(crate) fn runs_listing(dir: &Path) -> String {
-    let out = Command::new(gelrig())
-        .arg("runs")
-        .arg(dir)
-        .output()
-        .unwrap();
+    gelrig_ok([std::ffi::OsStr::new("runs"), dir.as_os_str()])
+}
+
+/// `gelrig ARGS`'s standard output, asserting it succeeded (its standard error if not).
+pub(crate) fn gelrig_ok<I, S>(args: I) -> String
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = Command::new(gelrig()).args(args).output().unwrap();
     assert!(
         out.status.success(),
         "{}",

@@ -88,7 +88,7 @@ pub fn load_with(
     budget: &Budget,
 ) -> Result<Loaded, Vec<Diagnostic>> {
     let text = read(protocol_path, "the protocol")?;
-    load_text(protocol_path, text, rig_override, budget)
+    load_text(protocol_path, text, rig_override, budget, None)
 }
 
 /// Values given on the command line in place of the protocol's own.
@@ -99,6 +99,9 @@ pub struct Overrides {
     pub set: Vec<String>,
     /// The run's name in place of the protocol's.
     pub name: Option<String>,
+    /// The simulated bench's fidelity in place of the rig file's `sim: {fidelity}`; the
+    /// edited rig is what the run records (its `rig.yaml`).
+    pub fidelity: Option<rig::config::Fidelity>,
 }
 
 /// [`load_with`] with `overrides` applied to the protocol's text first. An edited protocol is
@@ -111,21 +114,77 @@ pub fn load_with_overrides(
     budget: &Budget,
     overrides: &Overrides,
 ) -> Result<Loaded, Vec<Diagnostic>> {
-    if overrides == &Overrides::default() {
-        return load_with(protocol_path, rig_override, budget);
-    }
     let text = read(protocol_path, "the protocol")?;
-    let edited = overrides::apply(&text, overrides).map_err(|(message, fix)| {
+    let protocol_edits = Overrides {
+        fidelity: None,
+        ..overrides.clone()
+    };
+    let edited = if protocol_edits == Overrides::default() {
+        text
+    } else {
+        overrides::apply(&text, overrides).map_err(|(message, fix)| {
+            vec![Diagnostic::at_path(
+                protocol_path,
+                &text,
+                &rig::config::YamlPath::root(),
+                Severity::Error,
+                message,
+                fix,
+            )]
+        })?
+    };
+    load_text(
+        protocol_path,
+        edited,
+        rig_override,
+        budget,
+        overrides.fidelity,
+    )
+}
+
+/// The rig with its simulated bench's fidelity set to `level` (`sim: {fidelity}`), in the
+/// parsed rig and in the text the run records. A rig without a simulated bench is refused:
+/// it has nothing to resolve.
+fn with_fidelity(
+    rig_path: &Path,
+    (mut rig, text): (RigConfig, String),
+    level: rig::config::Fidelity,
+) -> Result<(RigConfig, String), Vec<Diagnostic>> {
+    let refuse = |message: String| {
         vec![Diagnostic::at_path(
-            protocol_path,
+            rig_path,
             &text,
             &rig::config::YamlPath::root(),
             Severity::Error,
             message,
-            fix,
+            "drop --fidelity: it sets how finely a simulated bench solves its contact",
         )]
-    })?;
-    load_text(protocol_path, edited, rig_override, budget)
+    };
+    let Some(sim) = rig.sim.as_mut() else {
+        return Err(refuse(format!(
+            "--fidelity {}: rig `{}` has no simulated bench (`sim:`)",
+            level.as_str(),
+            rig.name
+        )));
+    };
+    sim.fidelity = Some(level);
+    let mut doc: serde_yaml::Value = serde_yaml::from_str(&text)
+        .map_err(|e| refuse(format!("the rig file does not re-read: {e}")))?;
+    let set = doc
+        .get_mut("sim")
+        .and_then(serde_yaml::Value::as_mapping_mut)
+        .map(|m| m.insert("fidelity".into(), level.as_str().into()));
+    if set.is_none() {
+        return Err(refuse("the rig file's `sim:` is not a mapping".into()));
+    }
+    let body = serde_yaml::to_string(&doc)
+        .map_err(|e| refuse(format!("the edited rig does not write: {e}")))?;
+    let edited = format!(
+        "# {} with `sim: {{fidelity: {}}}` set by --fidelity\n{body}",
+        rig_path.display(),
+        level.as_str()
+    );
+    Ok((rig, edited))
 }
 
 /// Parses, resolves and checks protocol `text` read from `protocol_path` (relative paths in
@@ -135,12 +194,16 @@ fn load_text(
     text: String,
     rig_override: Option<&Path>,
     budget: &Budget,
+    fidelity: Option<rig::config::Fidelity>,
 ) -> Result<Loaded, Vec<Diagnostic>> {
     let mut protocol = parse(protocol_path, &text).map_err(|d| vec![*d])?;
     read_material(protocol_path, &text, &mut protocol).map_err(|d| vec![*d])?;
     protocol.sensor.resolve_defaults();
     let rig_path = rig_path_of(protocol_path, &text, &protocol, rig_override)?;
-    let (rig, rig_text) = load_rig(&rig_path)?;
+    let (rig, rig_text) = match fidelity {
+        Some(level) => with_fidelity(&rig_path, load_rig(&rig_path)?, level)?,
+        None => load_rig(&rig_path)?,
+    };
     let mut diags = Vec::new();
     let compiled = compile::compile_with(&protocol, &rig, budget);
     diags.extend(gelsight_force_issue(
@@ -322,7 +385,8 @@ fn too_fine_to_simulate(
         return None;
     }
     let spec = plant_spec(protocol, compiled).ok()?;
-    let side = ContactModel::grid_side(&spec.contact, &spec.quality, compiled.needs.camera);
+    let quality = simbench::quality_for(rig.fidelity());
+    let side = ContactModel::grid_side(&spec.contact, &quality, compiled.needs.camera);
     (side > MAX_GRID_SIDE).then(|| {
         Diagnostic::at_path(
             path,
@@ -333,7 +397,15 @@ fn too_fine_to_simulate(
                 "the simulated bench would solve this contact on a grid {side} cells wide (at most {MAX_GRID_SIDE}): the indenter is too small for the {} mm layer",
                 rig::units::fmt_value(spec.contact.layer.thickness_mm)
             ),
-            "use a larger indenter, or run on a real rig",
+            if rig.fidelity() == rig::config::Fidelity::Default {
+                "use a larger indenter, or run on a real rig".to_string()
+            } else {
+                format!(
+                    "the rig's fidelity `{}` asks for the finer grid: use `--fidelity default` (or a \
+                     larger indenter)",
+                    rig.fidelity().as_str()
+                )
+            },
         )
     })
 }

@@ -158,6 +158,7 @@ mod tests {
                 "sequence.0.home.axes=[normal, shear]".into(),
             ],
             name: None,
+            fidelity: None,
         };
         let out: Value = serde_yaml::from_str(&apply(text, &o).expect("ok")).expect("ok");
         assert_eq!(out["indenter"]["diameter"], Value::from("10 mm"));
@@ -181,6 +182,7 @@ mod tests {
         let o = Overrides {
             set: vec!["sequence.0.repeat.times=3".into()],
             name: None,
+            fidelity: None,
         };
         let (what, fix) = apply(text, &o).expect_err("item 0 is home");
         assert!(
@@ -191,6 +193,7 @@ mod tests {
         let o = Overrides {
             set: vec!["sequence.2.repeat.times=3".into()],
             name: None,
+            fidelity: None,
         };
         assert!(apply(text, &o).is_ok());
     }
@@ -208,6 +211,7 @@ mod tests {
             let o = Overrides {
                 set: vec![set.into()],
                 name: None,
+                fidelity: None,
             };
             let (m, fix) = apply(text, &o).expect_err("refused");
             assert!(m.contains(says) && !fix.is_empty(), "{set}: {m}");

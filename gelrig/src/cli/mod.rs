@@ -193,6 +193,12 @@ pub(crate) struct BudgetArgs {
     /// the protocol's name and a hash of the settings].
     #[arg(long, value_name = "NAME")]
     name: Option<String>,
+    /// How finely the simulated bench solves its contact: `fast` (a quarter of the cells across a
+    /// curved contact and the field, for checking a protocol's logic), `default`, or `reference` (four times the cells); each
+    /// level's error and cost: `gelrig plan` [default: the rig's `sim: {fidelity}`, else
+    /// `default`]. The edited rig is what the run records.
+    #[arg(long, value_name = "LEVEL")]
+    fidelity: Option<crate::sim::Fidelity>,
 }
 
 impl BudgetArgs {
@@ -223,6 +229,7 @@ pub(crate) fn load_or_report(
     let overrides = crate::protocol::Overrides {
         set: budget.set.clone(),
         name: budget.name.clone(),
+        fidelity: budget.fidelity,
     };
     match load_with_overrides(&protocol, rig, &budget.budget(), &overrides) {
         Ok(loaded) => {

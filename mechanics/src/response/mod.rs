@@ -75,7 +75,7 @@ pub struct ModelSpec {
     pub quality: Quality,
 }
 
-/// Resolution choices (error against cost: see BENCHMARKS.md).
+/// Resolution choices (error against cost: see BENCHMARKS.md, "Fidelity levels").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Quality {
     /// Cells across a flat punch when no field grid is needed.
@@ -87,6 +87,9 @@ pub struct Quality {
     /// A non-circular flat punch's force extrapolated across two grids (`cells_flat` and
     /// twice it); off, the `cells_flat` grid's own force (what the extrapolation corrects).
     pub extrapolate_flat: bool,
+    /// Increments a curved indenter's loading path is followed in when it presses with
+    /// friction (even; the normal table extrapolates across half as many and this many).
+    pub path_steps: usize,
 }
 
 impl Default for Quality {
@@ -96,6 +99,39 @@ impl Default for Quality {
             cells_curved: 16,
             field_cells: 256,
             extrapolate_flat: true,
+            path_steps: 16,
+        }
+    }
+}
+
+impl Quality {
+    /// Half the default's resolution across a curved contact, its loading path and the field
+    /// grid (a quarter of the cells): for dry runs that check a protocol's logic; its error
+    /// against [`Self::reference`] is measured per shipped protocol
+    /// (docs/benchmarks/simulator.md, "Fidelity levels"). A flat punch keeps the default's
+    /// grid: at 16 cells its shear backbone read `box-shear-flat`'s Fx 10 % off the
+    /// reference's (and without the two-grid extrapolation the rectangle's Fz 10 %), for
+    /// tables that cost a second or less at the default.
+    pub fn fast() -> Self {
+        Self {
+            cells_flat: 32,
+            cells_curved: 8,
+            field_cells: 128,
+            extrapolate_flat: true,
+            path_steps: 8,
+        }
+    }
+
+    /// Twice the default's resolution (1.5 times across a curved contact, whose shallowest
+    /// depth's grid would otherwise pass [`MAX_GRID_SIDE`] on the shipped sphere): the level
+    /// the others are measured against, itself within the finite-element oracles' own error.
+    pub fn reference() -> Self {
+        Self {
+            cells_flat: 64,
+            cells_curved: 24,
+            field_cells: 512,
+            extrapolate_flat: true,
+            path_steps: 32,
         }
     }
 }

@@ -20,15 +20,12 @@ use crate::operator::{Compliance, Grid, LayerOperator};
 use crate::pressing::curved::{CurvedPath, path_depths};
 use crate::solve::{Tangential, normal_unknown_area, tangential};
 
-/// Increments of a loading path, spaced evenly in √δ (each catches about the same width of
-/// surface). A pressed state is followed in this many: its force is 0.2–0.4 % high at the
-/// shipped sphere's and can's deepest depths (the catch lags one increment); the normal
-/// table's force is extrapolated across half as many and this many (BENCHMARKS.md, "Curved
-/// indenters pressed with friction").
-pub(super) const PATH_STEPS: usize = 16;
-
-// The table's extrapolation pairs the coarse path's increment k with the fine one's 2k + 1.
-const _: () = assert!(PATH_STEPS.is_multiple_of(2));
+// Increments of a loading path, spaced evenly in √δ (each catches about the same width of
+// surface), are `Quality::path_steps`. At the default 16 a pressed state's force is 0.2–0.4 %
+// high at the shipped sphere's and can's deepest depths (the catch lags one increment); the
+// normal table's force is extrapolated across half as many and that many (BENCHMARKS.md,
+// "Curved indenters pressed with friction"). The extrapolation pairs the coarse path's
+// increment k with the fine one's 2k + 1, so the count is even (at least 2).
 
 /// The paths' inner tolerance: the sweeps stop at a force change of its square root (3e-5),
 /// well under the 0.1 % the table's force is checked to (the extrapolation triples that
@@ -128,7 +125,8 @@ impl ContactModel {
         let mu = self.spec.contact.material.friction;
         // The frictionless force where the ratio is taken, the coarse path's depths (once;
         // it was solved again for each path, 24 solves for these 8).
-        let free: Vec<f64> = path_depths(deepest, PATH_STEPS / 2)
+        let steps = self.path_steps();
+        let free: Vec<f64> = path_depths(deepest, steps / 2)
             .into_iter()
             .map(|d| normal_unknown_area(&op, &prof, d, None, path_tol()).force_n)
             .collect();
@@ -147,14 +145,14 @@ impl ContactModel {
                 .collect()
         };
         // The catch lags one increment, so the force errs at first order in the increment:
-        // Richardson across PATH_STEPS / 2 and PATH_STEPS increments, at the coarse path's
+        // Richardson across steps / 2 and steps increments, at the coarse path's
         // depths (every other one of the fine path's: coarse k is fine 2k + 1). Within
         // 0.09 % of an independent finite-element solution on the box sphere, where 16
         // increments alone were 0.4 % high (BENCHMARKS.md, "Curved indenters pressed with
         // friction").
-        let (coarse, fine) = (held(PATH_STEPS / 2), held(PATH_STEPS));
+        let (coarse, fine) = (held(steps / 2), held(steps));
         let mut points = vec![(0.0, 1.0)];
-        for (k, d) in path_depths(deepest, PATH_STEPS / 2).into_iter().enumerate() {
+        for (k, d) in path_depths(deepest, steps / 2).into_iter().enumerate() {
             let fine_k = fine.get(2 * k + 1).copied().unwrap_or(f64::NAN);
             let r = (2.0 * fine_k - coarse[k]) / free[k];
             if !(r.is_finite() && r > 0.0) {
@@ -187,8 +185,13 @@ impl ContactModel {
         Ok(())
     }
 
+    /// The loading path's increments, even and at least 2 (`Quality::path_steps`).
+    fn path_steps(&self) -> usize {
+        (self.spec.quality.path_steps.max(2) / 2) * 2
+    }
+
     /// The pressed state at the depth bucket `key` (0.5 % of the thickness each) on the grid
-    /// of that depth's tangential tables: its loading path followed there in [`PATH_STEPS`]
+    /// of that depth's tangential tables: its loading path followed there in `Quality::path_steps`
     /// increments (cached). The depth comes from the key, so a cached state always lives on
     /// the grid `op_for` gives its depth.
     pub(super) fn pressed(&mut self, key: u64) -> Pressed {
@@ -207,7 +210,7 @@ impl ContactModel {
         let mu = self.spec.contact.material.friction;
         let mut path = CurvedPath::new(&op, &prof, mu, path_tol());
         // The path's depths increase from a finite start: no increment is refused.
-        let last = path_depths(depth_mm, PATH_STEPS)
+        let last = path_depths(depth_mm, self.path_steps())
             .into_iter()
             .filter_map(|d| path.press_to(d).ok())
             .last();

@@ -40,6 +40,14 @@ impl RigConfig {
             .unwrap_or(PRESSING_FRICTION_DEFAULT)
     }
 
+    /// How finely a simulated bench solves its contact: `sim: {fidelity}`, or the default.
+    pub fn fidelity(&self) -> super::Fidelity {
+        self.sim
+            .as_ref()
+            .and_then(|s| s.fidelity)
+            .unwrap_or_default()
+    }
+
     /// Whether this bench's flat punches press at finite strain: `sim: {finite_strain}`, or
     /// `contact: {finite_strain}`, or false.
     pub fn finite_strain(&self) -> bool {

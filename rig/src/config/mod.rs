@@ -245,6 +245,48 @@ pub struct SimConfig {
     /// flat punch (force linear in depth). The same as `contact: {finite_strain}`.
     #[serde(default)]
     pub finite_strain: Option<bool>,
+    /// Resolution of the simulated contact — grids, loading path, field — traded against
+    /// run time (docs/benchmarks/simulator.md, "Fidelity levels"). Default `default`;
+    /// `gelrig run --fidelity` sets it for one run.
+    #[serde(default)]
+    pub fidelity: Option<Fidelity>,
+}
+
+/// How finely the simulated bench solves its contact: error against run time.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Fidelity {
+    /// Half the default's resolution: a quick check of a protocol's logic.
+    Fast,
+    /// The verified model (within 0.3 % of finite elements on the shipped contacts).
+    #[default]
+    Default,
+    /// Twice the default's resolution: the level the others are measured against.
+    Reference,
+}
+
+impl Fidelity {
+    /// Every level, fastest first.
+    pub const ALL: [Self; 3] = [Self::Fast, Self::Default, Self::Reference];
+
+    /// The name in a rig file and on the command line.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Fast => "fast",
+            Self::Default => "default",
+            Self::Reference => "reference",
+        }
+    }
+}
+
+impl std::str::FromStr for Fidelity {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.as_str() == s)
+            .ok_or_else(|| format!("unknown fidelity `{s}`: use fast, default or reference"))
+    }
 }
 
 /// One segment of a path into a YAML document, to locate a value for an error message.

@@ -100,6 +100,7 @@ struct Board<'a> {
     groups: &'a [usize],
     n_groups: usize,
     scored: &'a [String],
+    noise: &'a BTreeMap<String, f64>,
     best: Option<Scored>,
     rows: Vec<Candidate>,
 }
@@ -107,7 +108,14 @@ struct Board<'a> {
 impl Board<'_> {
     /// Scores a candidate on its samples and keeps it if it is the best so far.
     fn consider(&mut self, spec: Spec, per_run: Vec<RunSamples>) {
-        let row = score(&spec, &per_run, self.groups, self.n_groups, self.scored);
+        let row = score(
+            &spec,
+            &per_run,
+            self.groups,
+            self.n_groups,
+            self.scored,
+            self.noise,
+        );
         let better =
             row.score.is_finite() && self.best.as_ref().is_none_or(|b| row.score < b.row.score);
         self.rows.push(row.clone());
@@ -180,13 +188,14 @@ pub(super) fn choose(
     let explicit = opts.method.is_some();
     let every = stride(g);
     let scored_channels = loaded_channels(g);
+    let noise = channel_noise(g);
     // Leaving an indenter out tells something only where another indenter holds the left-out
     // one's kind of load; otherwise (one indenter, or each the only one of its kind) the
     // frames held out choose, and the unseen-shape error is unknown.
     let n_groups = if n_groups >= 2 && {
         let per_run = samples(g, &How::Moments);
         let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
-        left_out(&per_run, &groups, n_groups, &ranges(&all), None).is_some()
+        left_out(&per_run, &groups, n_groups, &ranges(&all), None, &noise).is_some()
     } {
         n_groups
     } else {
@@ -196,6 +205,7 @@ pub(super) fn choose(
         groups: &groups,
         n_groups,
         scored: &scored_channels,
+        noise: &noise,
         best: None,
         rows: Vec::new(),
     };
@@ -274,7 +284,15 @@ pub(super) fn choose(
         _ => How::Moments,
     };
     let per_run = samples(g, &how);
-    let unseen = unseen_shape(g, &per_run, &groups, n_groups, spec.symmetric, how.names());
+    let unseen = unseen_shape(
+        g,
+        &per_run,
+        &groups,
+        n_groups,
+        spec.symmetric,
+        how.names(),
+        &noise,
+    );
     let mut file = finish(g, &how, per_run, first, spec.symmetric)?;
     file.unseen_shape = unseen;
     rows.sort_by(|a, b| a.score.total_cmp(&b.score));
@@ -349,6 +367,7 @@ fn score(
     groups: &[usize],
     n_groups: usize,
     loaded: &[String],
+    noise: &BTreeMap<String, f64>,
 ) -> Candidate {
     let names = match spec.method {
         Method::Moments => &analysis::force_sensor::FEATURES[..],
@@ -361,7 +380,7 @@ fn score(
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
     let ranges = ranges(&all);
     let per_channel: BTreeMap<String, ErrorStats> = if n_groups >= 2 {
-        match left_out(per_run, groups, n_groups, &ranges, masks.as_deref()) {
+        match left_out(per_run, groups, n_groups, &ranges, masks.as_deref(), noise) {
             Some((pooled, _, _)) => pooled,
             None => return unscored(spec),
         }
@@ -423,29 +442,23 @@ fn loaded_channels(g: &Gathered) -> Vec<String> {
     }
 }
 
-/// Pooled and per-group error on each indenter group read by a fit on the others, with the
-/// pooled relative error; `None` when a fit fails.
-#[allow(clippy::type_complexity)]
-fn left_out(
-    per_run: &[RunSamples],
-    groups: &[usize],
-    n_groups: usize,
-    ranges: &BTreeMap<String, [f64; 2]>,
-    masks: Option<&[Vec<bool>]>,
-) -> Option<(
-    BTreeMap<String, ErrorStats>,
-    Vec<BTreeMap<String, ErrorStats>>,
-    BTreeMap<String, f64>,
-)> {
-    // Each channel's noise: the RMSE of a fit on every feature, on frames held out.
-    let noise: BTreeMap<String, f64> = held_out(per_run, ranges, None)
+/// Each channel's noise, which decides what a run loads: the RMSE of the field moments fitted
+/// on every feature, on frames held out. One yardstick for every candidate: judged by each
+/// candidate's own noise, a noisier reading saw fewer runs as loading a channel, was scored on
+/// other frames than the rest, or on none (the portable's four runs: 11 of 12 traction maps
+/// scored nothing, and the twelfth won against readings scored on every fold).
+fn channel_noise(g: &Gathered) -> BTreeMap<String, f64> {
+    let per_run = samples(g, &How::Moments);
+    let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
+    held_out(&per_run, &ranges(&all), None)
         .map(|h| h.channels.into_iter().map(|(c, s)| (c, s.rmse)).collect())
-        .unwrap_or_default();
-    left_out_with(per_run, groups, n_groups, ranges, masks, &noise)
+        .unwrap_or_default()
 }
 
+/// Pooled and per-group error on each indenter group read by a fit on the others, with the
+/// pooled relative error; `None` when a fit fails. `noise` is [`channel_noise`].
 #[allow(clippy::type_complexity)]
-fn left_out_with(
+fn left_out(
     per_run: &[RunSamples],
     groups: &[usize],
     n_groups: usize,
@@ -568,6 +581,7 @@ fn unseen_shape(
     n_groups: usize,
     symmetric: bool,
     names: &[&str],
+    noise: &BTreeMap<String, f64>,
 ) -> Option<UnseenShape> {
     if n_groups < 2 {
         return None;
@@ -576,7 +590,7 @@ fn unseen_shape(
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
     let ranges = ranges(&all);
     let (pooled, per_group, relative) =
-        left_out(per_run, groups, n_groups, &ranges, masks.as_deref())?;
+        left_out(per_run, groups, n_groups, &ranges, masks.as_deref(), noise)?;
     let indenter_of = |k: usize| {
         groups
             .iter()

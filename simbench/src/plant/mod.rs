@@ -722,5 +722,7 @@ mod depth;
 mod grasping;
 mod normal;
 #[cfg(test)]
+mod stability_tests;
+#[cfg(test)]
 mod tests;
 mod wrench;

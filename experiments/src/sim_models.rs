@@ -137,6 +137,25 @@ pub fn sim_models(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> 
 }
 
 impl SimModels {
+    /// One line for the start of a run: the level, what is solved, what is left out and why.
+    pub fn summary(&self) -> String {
+        let solved: Vec<&str> = self.solved.iter().map(|(n, _)| n.as_str()).collect();
+        let mut line = format!(
+            "simulated bench at fidelity {}: solves {}",
+            self.fidelity.as_str(),
+            solved.join(", ")
+        );
+        if !self.left_out.is_empty() {
+            let out: Vec<String> = self
+                .left_out
+                .iter()
+                .map(|(n, why)| format!("{n} ({why})"))
+                .collect();
+            line.push_str(&format!("; leaves out {}", out.join(", ")));
+        }
+        line
+    }
+
     /// The section `gelrig plan` prints.
     pub fn render(&self) -> String {
         let mut o = format!(

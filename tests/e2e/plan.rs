@@ -246,6 +246,21 @@ fn the_plan_lists_the_simulated_models_and_the_fidelity() {
         tmp.path().as_os_str(),
         protocol("box-normal-flat").as_os_str(),
     ]);
+    // Unless quiet, a run says what its bench solves and leaves out.
+    let said = std::process::Command::new(gelrig())
+        .args(["run", "--plain", "--fidelity", "fast", "--out"])
+        .arg(tmp.path().join("said"))
+        .arg(protocol("box-normal-flat"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&said.stderr);
+    assert!(
+        err.contains(
+            "simulated bench at fidelity fast: solves normal, fields; leaves out shear (no shear \
+             stage and no grasp), twist (no rotation stage and no grasp)"
+        ),
+        "{err}"
+    );
     let dir = std::fs::read_dir(tmp.path())
         .unwrap()
         .filter_map(|e| e.ok())

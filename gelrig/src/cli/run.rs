@@ -166,6 +166,9 @@ pub(crate) fn execute(
             err!("interrupted before the run started: nothing ran, no run directory");
             return Ok(Exit::from(130));
         }
+        if let (false, Some(sim)) = (opts.quiet, &loaded.plan.sim) {
+            err!("{}", sim.summary());
+        }
         let board = opts
             .live
             .is_some()

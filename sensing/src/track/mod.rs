@@ -279,7 +279,9 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
     }
     .min(16);
     let frame_count = frames.len();
-    for decoded in DecodeAhead::new(frames, workers) {
+    let ahead = DecodeAhead::new(frames, workers);
+    let pool = ahead.pool();
+    for decoded in ahead {
         let (frame, path) = (decoded.frame, decoded.path);
         let (fw, fh, rgb) = decoded.image?;
         let frame_err = |source| TrackFailure::Frame {
@@ -307,6 +309,7 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
             f.frame(frame, &pipeline)?;
         }
         tally.frame(frame, &pipeline);
+        pool.give(rgb);
     }
     if let (Some(first), Some(last)) = (tally.few_blob_frames.first(), tally.few_blob_frames.last())
     {

@@ -52,6 +52,11 @@ pub(crate) fn shipped() -> Vec<String> {
 /// Path of the `gelrig` binary of this build profile, built (or brought up to date) once
 /// per test process so the tests never run a stale binary. `GELRIG_BIN` names another
 /// binary instead (an installed one, or an older build to show a test fails there).
+///
+/// Built as `cargo build --workspace --bins`, not `-p gelrig`: the workspace's features
+/// unified the way `cargo test --workspace` unifies them, so the binary that command already
+/// linked is reused. With `-p gelrig` the dependencies resolve to other features and a fresh
+/// clone compiled a second copy of them inside the test run (minutes of CI).
 pub(crate) fn gelrig() -> PathBuf {
     static BIN: OnceLock<PathBuf> = OnceLock::new();
     BIN.get_or_init(|| {
@@ -65,7 +70,7 @@ pub(crate) fn gelrig() -> PathBuf {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let mut cmd = Command::new(cargo);
         cmd.current_dir(root())
-            .args(["build", "-q", "-p", "gelrig", "--bin", "gelrig"]);
+            .args(["build", "-q", "--workspace", "--bins"]);
         if release {
             cmd.arg("--release");
         }

@@ -56,7 +56,7 @@ pub(crate) fn shipped() -> Vec<String> {
 /// Built as `cargo build --workspace --bins`, not `-p gelrig`: the workspace's features
 /// unified the way `cargo test --workspace` unifies them, so the binary that command already
 /// linked is reused. With `-p gelrig` the dependencies resolve to other features and a fresh
-/// clone compiled a second copy of them inside the test run (minutes of CI).
+/// clone compiled a second copy of them inside the test run.
 pub(crate) fn gelrig() -> PathBuf {
     static BIN: OnceLock<PathBuf> = OnceLock::new();
     BIN.get_or_init(|| {

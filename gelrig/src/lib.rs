@@ -125,6 +125,52 @@
 //!
 //! The test `tests/e2e/api.rs` runs the same code on a sensor it calibrates from dry runs
 //! (calibration takes tens of seconds: too long for an example here).
+//!
+//! # Height maps from the lights
+//!
+//! A shape sensor calibrated on ball presses (`gelrig shape calibrate` does this from files),
+//! then a frame read into a height map in mm. Here the presses are drawn by a colour change
+//! linear in the gel's slope, as a GelSight's lights give it.
+//!
+//! ```
+//! use gelrig::shape::{Circle, Depth, Press, Rgb, SlopeModel, calibrate};
+//!
+//! let (w, h, ball_px, mm_per_px) = (160usize, 120usize, 40.0, 0.1);
+//! let background = vec![120u8; w * h * 3];
+//! let press = |c: &Circle| -> Vec<u8> {
+//!     let mut px = background.clone();
+//!     for i in 0..w * h {
+//!         let (x, y) = ((i % w) as f64 - c.x_px, (i / w) as f64 - c.y_px);
+//!         if x * x + y * y < c.radius_px * c.radius_px {
+//!             let s = (ball_px * ball_px - x * x - y * y).sqrt();
+//!             let (gx, gy) = (-x / s, -y / s);
+//!             for (k, d) in [60.0 * gy, -90.0 * gx, 40.0 * gx - 50.0 * gy].iter().enumerate() {
+//!                 px[3 * i + k] = (120.0 + d).round() as u8;
+//!             }
+//!         }
+//!     }
+//!     px
+//! };
+//! let circles: Vec<Circle> = [(40.0, 30.0), (120.0, 30.0), (80.0, 60.0), (40.0, 90.0), (120.0, 90.0)]
+//!     .iter()
+//!     .map(|&(x_px, y_px)| Circle { x_px, y_px, radius_px: 15.0 })
+//!     .collect();
+//! let frames: Vec<Vec<u8>> = circles.iter().map(|c| press(c)).collect();
+//! let bg = Rgb::new(w, h, &background).unwrap();
+//! let presses: Vec<Press<'_>> = frames
+//!     .iter()
+//!     .zip(&circles)
+//!     .map(|(f, c)| Press { name: "press".into(), frame: Rgb::new(w, h, f).unwrap(), circle: *c })
+//!     .collect();
+//! let calibration = calibrate(bg, &presses, ball_px, mm_per_px).unwrap();
+//! let map = SlopeModel::LocalLinear(calibration.local_linear).prepare(w, h).unwrap();
+//! let mut depth = Depth::new(map, bg, mm_per_px).unwrap();
+//! let height_mm = depth.height(Rgb::new(w, h, &frames[2]).unwrap()).unwrap();
+//! // The deepest point sits over the ball's centre, about its cap's depth below the gel.
+//! let cap_mm = (ball_px - (ball_px * ball_px - 15.0f64 * 15.0).sqrt()) * mm_per_px;
+//! assert!(f64::from(height_mm[60 * w + 80]) < -0.8 * cap_mm);
+//! assert!(depth.stats().max_depth_mm > 0.8 * cap_mm);
+//! ```
 
 pub mod cli;
 pub mod view;
@@ -197,6 +243,19 @@ pub mod force {
 }
 
 /// The user's own gel: a material fitted to a bench's runs (`gelrig fit-material`).
+/// Shape from the GelSight's light (issue 50): a ball calibration into `shape.yaml`, and
+/// frames into height maps.
+pub mod shape {
+    pub use ::shape::ball::{BallScore, Circle};
+    pub use ::shape::{
+        Calibration, Depth, DepthStats, HeldOut, ModelKind, Press, Rgb, SlopeModel, calibrate,
+    };
+    pub use sensing::shape::file::{ModelFigures, UsedPress};
+    pub use sensing::shape::{
+        ShapeFile, ShapeFileError, ShapeRow, calibrate_dir, read_presses, write_height_maps,
+    };
+}
+
 pub mod material {
     pub use sensing::material::{FitError, MaterialFile, MaterialFileError, fit};
 }

@@ -26,7 +26,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from . import _gelrig
-from ._gelrig import ForceSensor, GelrigError, ProtocolError, Tracker, TrackResult
+from ._gelrig import ForceSensor, GelrigError, ProtocolError, Shape, Tracker, TrackResult
 from . import sim
 
 # The shipped protocols travel in the wheel (`gelrig/protocols`, the repository's
@@ -44,6 +44,7 @@ __all__ = [
     "Protocol",
     "ProtocolError",
     "Run",
+    "Shape",
     "Tracker",
     "TrackResult",
     "read_image",

@@ -15,6 +15,7 @@ mod protocol;
 mod run;
 mod runs;
 mod sensor;
+mod shape;
 mod sim;
 mod tracker;
 
@@ -52,6 +53,7 @@ fn _gelrig(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<tracker::Tracker>()?;
     m.add_class::<tracker::TrackResult>()?;
     m.add_class::<sensor::ForceSensor>()?;
+    m.add_class::<shape::Shape>()?;
     m.add_class::<sim::Bench>()?;
     m.add_function(wrap_pyfunction!(run::run, m)?)?;
     m.add_function(wrap_pyfunction!(runs::read_manifest, m)?)?;

@@ -7,4 +7,5 @@
 pub mod material;
 pub mod run_data;
 pub mod sensor;
+pub mod shape;
 pub mod track;

@@ -107,6 +107,11 @@ impl ContactCamera {
         })
     }
 
+    /// Millimetres per pixel of the view.
+    pub fn mm_per_px(&self) -> f64 {
+        self.renderer.mm_per_px()
+    }
+
     /// The gel at rest: no contact.
     pub fn at_rest(&self, seq: u64) -> ContactFrame {
         self.frame_of(None, seq)
@@ -116,6 +121,25 @@ impl ContactCamera {
     /// error names a contact the model cannot draw (deeper than the spec's deepest
     /// indentation, a shear or twist on a pressing-only camera, a value not finite).
     pub fn frame(&mut self, contact: &ContactPose, seq: u64) -> Result<ContactFrame, String> {
+        self.frame_and_surface(contact, seq, false).map(|(f, _)| f)
+    }
+
+    /// [`Self::frame`] and the gel surface's depth at each pixel (mm, into the gel,
+    /// row-major): the truth a shape reading of the frame is checked against.
+    pub fn frame_with_surface(
+        &mut self,
+        contact: &ContactPose,
+        seq: u64,
+    ) -> Result<(ContactFrame, Vec<f32>), String> {
+        self.frame_and_surface(contact, seq, true)
+    }
+
+    fn frame_and_surface(
+        &mut self,
+        contact: &ContactPose,
+        seq: u64,
+        with_surface: bool,
+    ) -> Result<(ContactFrame, Vec<f32>), String> {
         let values = [
             contact.depth_mm,
             contact.shear_mm,
@@ -160,6 +184,11 @@ impl ContactCamera {
             centre_mm: contact.centre_mm,
             rotation_rad: 0.0,
         };
+        let depth = if with_surface {
+            self.renderer.surface_depth_mm(&surface)
+        } else {
+            Vec::new()
+        };
         let mut frame = self.frame_of(Some(&surface), seq);
         frame.normal_force_n = self.model.normal_force_n(contact.depth_mm);
         frame.contact_radius_mm = self.model.contact_radius_mm(contact.depth_mm);
@@ -167,7 +196,7 @@ impl ContactCamera {
         frame.torque_nmm = torque_nmm;
         frame.stick_fraction_shear = stick_shear;
         frame.stick_fraction_twist = stick_twist;
-        Ok(frame)
+        Ok((frame, depth))
     }
 
     /// The force (or moment) and stick fraction at displacement `x` (mm, or rad when

@@ -219,6 +219,42 @@ impl Renderer {
         self.mm_per_px
     }
 
+    /// The surface's normal displacement (mm, into the gel) at each pixel's centre, row-major:
+    /// the truth the shading was drawn from, mapped to pixels as [`Self::render`] maps it
+    /// (bilinear between field cells; zero beyond the field).
+    pub fn surface_depth_mm(&self, s: &SurfaceView) -> Vec<f32> {
+        let g = &s.field.grid;
+        let n = g.n;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let cell = |mm: f64| -> Option<(usize, f64)> {
+            let f = mm / g.dx + (n / 2) as f64 - 0.5;
+            (f >= 0.0 && f <= (n - 1) as f64).then(|| {
+                let i = (f.floor() as usize).min(n - 2);
+                (i, f - i as f64)
+            })
+        };
+        let mut out = vec![0.0f32; w * h];
+        for py in 0..h {
+            let Some((cj, ty)) =
+                cell((py as f64 + 0.5 - h as f64 / 2.0) * self.mm_per_px - s.centre_mm.1)
+            else {
+                continue;
+            };
+            for px in 0..w {
+                let Some((ci, tx)) =
+                    cell((px as f64 + 0.5 - w as f64 / 2.0) * self.mm_per_px - s.centre_mm.0)
+                else {
+                    continue;
+                };
+                let at = |i: usize, j: usize| s.field.uz[j * n + i];
+                let v = (1.0 - ty) * ((1.0 - tx) * at(ci, cj) + tx * at(ci + 1, cj))
+                    + ty * ((1.0 - tx) * at(ci, cj + 1) + tx * at(ci + 1, cj + 1));
+                out[py * w + px] = v as f32;
+            }
+        }
+        out
+    }
+
     /// Undeformed marker centres, px, with pixel (i, j) centred at (i, j).
     pub fn reference_px(&self) -> Vec<[f64; 2]> {
         self.markers_mm

@@ -30,6 +30,7 @@ mod report;
 mod report_cli;
 mod resume;
 mod settle;
+mod shape;
 mod signals;
 mod support;
 mod timing;

@@ -40,6 +40,7 @@ pub(crate) mod resume;
 pub(crate) mod run;
 pub(crate) mod runs;
 pub(crate) mod schema;
+pub(crate) mod shape;
 pub(crate) mod sim;
 pub(crate) mod track;
 pub(crate) mod validate;
@@ -124,6 +125,8 @@ enum Command {
     Sim(sim::Cmd),
     /// The simulated bench's solved contact tables kept between runs: where, how big; clear.
     Cache(cache::Cmd),
+    /// Height maps from frames (slopes from the lights' colours), calibrated on ball presses.
+    Shape(shape::Cmd),
 }
 
 /// Runs the command line `args` (the program's name first, as `std::env::args_os` gives it)
@@ -161,6 +164,7 @@ where
         Command::Probe(c) => c.run(),
         Command::Sim(c) => c.run(),
         Command::Cache(c) => c.run(),
+        Command::Shape(c) => c.run(),
     };
     match result {
         Ok(code) => code,

@@ -119,6 +119,21 @@ fn shape_calibrates_on_ball_presses_and_writes_height_maps() {
     );
     let msg = refused(&small);
     assert!(msg.contains("shape.yaml") && msg.contains("fix:"), "{msg}");
+    // A shape file whose table was edited into something that is not a number.
+    let edited = tmp.path().join("edited.yaml");
+    let text = std::fs::read_to_string(&model).unwrap();
+    // The first value under the table's first `slope:` (a YAML block list).
+    let at = text.find("slope:").expect("the table's first bin");
+    let start = at + text[at..].find("- ").unwrap() + 2;
+    let end = start + text[start..].find('\n').unwrap();
+    let mut bad = text.clone();
+    bad.replace_range(start..end, ".nan");
+    std::fs::write(&edited, bad).unwrap();
+    let msg = refused(&edited);
+    assert!(
+        msg.contains("not numbers") && msg.contains("calibrate again"),
+        "{msg}"
+    );
     let empty = tmp.path().join("empty");
     std::fs::create_dir_all(&empty).unwrap();
     std::fs::copy(dir.join("background.png"), empty.join("background.png")).unwrap();

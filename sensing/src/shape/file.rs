@@ -165,10 +165,14 @@ impl ShapeFile {
                 r.at.iter()
                     .chain(r.channels.iter().flatten())
                     .all(|v| v.is_finite())
+            })
+            && s.lut.bins.iter().all(|b| {
+                b.slope.iter().all(|v| v.is_finite())
+                    && b.at.iter().all(|i| usize::from(*i) < shape::lut::BINS)
             });
         if !sane {
             return Err(err(
-                "sizes, scale or responses out of range".into(),
+                "sizes, scale, responses or table out of range (or not numbers)".into(),
                 "the file was edited or truncated: calibrate again, or restore it",
             ));
         }

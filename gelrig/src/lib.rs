@@ -222,10 +222,11 @@ pub mod track {
     };
 
     /// Tracking recorded frames (`gelrig track`): a run's or a folder's PNGs into
-    /// `markers.csv`, `contact.csv` and field pictures.
+    /// `markers.csv`, `contact.csv`, `depth.csv` and field pictures.
     pub mod recorded {
         pub use sensing::track::{
-            Input, Options, Summary, TrackFailure, detect_only, load_rgb, track,
+            Input, Options, ShapeReading, Summary, TrackFailure, detect_only, load_rgb,
+            step_last_frames, track,
         };
     }
 }
@@ -249,10 +250,12 @@ pub mod shape {
     pub use ::shape::ball::{BallScore, Circle};
     pub use ::shape::{
         Calibration, Depth, DepthStats, HeldOut, ModelKind, Press, Rgb, SlopeModel, calibrate,
+        find_circle,
     };
     pub use sensing::shape::file::{ModelFigures, UsedPress};
     pub use sensing::shape::{
-        ShapeFile, ShapeFileError, ShapeRow, calibrate_dir, read_presses, write_height_maps,
+        CirclesFrom, ShapeFile, ShapeFileError, ShapeRow, calibrate_dir, read_presses,
+        write_height_maps,
     };
 }
 

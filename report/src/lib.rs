@@ -12,6 +12,7 @@ mod block_sections;
 mod camera_timing;
 mod compare;
 mod contact;
+mod depth;
 mod field_analysis;
 mod field_figures;
 mod gelsight_force;

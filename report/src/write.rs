@@ -67,6 +67,10 @@ pub(super) fn write(
         });
         summary["contact"] = rows;
     }
+    if let Some((title, text, rows, plots)) = super::depth::section(data, &out.dir)? {
+        out.sections.push(Section { title, text, plots });
+        summary["depth"] = rows;
+    }
     let grasp = super::trials::analyse(data, &data.tactile);
     if let Some((title, text, json, charts)) = super::trials::section(data, &grasp, &data.tactile) {
         let mut plots = Vec::new();

@@ -29,6 +29,10 @@ pub const SIM_MARKERS: &str = "sim_markers.csv";
 pub const MARKERS: &str = "markers.csv";
 /// The contact region per frame, once tracked.
 pub const CONTACT: &str = "contact.csv";
+/// The contact read from depth per frame (`gelrig track --shape`).
+pub const DEPTH: &str = "depth.csv";
+/// Height maps of each step's last frame (`gelrig track --shape` on a run).
+pub const DEPTH_DIR: &str = "depth";
 /// The GelSight's wrench per frame (`gelrig track --sensor`).
 pub const WRENCH: &str = "wrench.csv";
 /// The run as MCAP, written as it goes (`gelrig run --record mcap`).

@@ -109,6 +109,9 @@ pub struct SimRow {
 #[derive(Debug, Clone, Deserialize)]
 pub struct FrameRow {
     pub frame: u64,
+    /// The frame's file, relative to the run directory.
+    #[serde(default)]
+    pub file: Option<String>,
     #[serde(default)]
     pub t_ns: u64,
     pub step: u32,
@@ -199,6 +202,19 @@ pub struct ContactRow {
     pub syy_px2: Option<f64>,
     #[serde(default)]
     pub sxy_px2: Option<f64>,
+}
+
+/// One row of `depth.csv` (as `gelrig track --shape` writes it).
+#[derive(Debug, Clone, Deserialize)]
+pub struct DepthRow {
+    pub frame: u64,
+    pub max_depth_mm: f64,
+    pub depth_area_mm2: f64,
+    #[serde(default)]
+    pub depth_cx_px: Option<f64>,
+    #[serde(default)]
+    pub depth_cy_px: Option<f64>,
+    pub volume_mm3: f64,
 }
 
 /// One row of `tactile.csv` (what the report reads).

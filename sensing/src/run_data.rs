@@ -7,8 +7,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 pub use rundir::read::{
-    ContactRow, ForceRow, FrameRow, MarkerRow, RunDirError, SimRow, StepRow, TactileCsvRow,
-    read_csv, read_optional, read_tactile,
+    ContactRow, DepthRow, ForceRow, FrameRow, MarkerRow, RunDirError, SimRow, StepRow,
+    TactileCsvRow, read_csv, read_optional, read_tactile,
 };
 use tracking::field::MarkerField;
 
@@ -29,6 +29,8 @@ pub struct RunData {
     pub frame_size: Option<(usize, usize)>,
     /// The contact region per frame (`contact.csv`), when frames exist.
     pub contact: Vec<ContactRow>,
+    /// The contact read from depth per frame (`depth.csv`, `gelrig track --shape`).
+    pub depth: Vec<DepthRow>,
     /// The live tactile state per frame (`tactile.csv`), when the run tracked frames live.
     pub tactile: Vec<TactileCsvRow>,
 }
@@ -107,6 +109,7 @@ fn read(dir: &Path, with_markers: bool) -> Result<RunData, RunDirError> {
     let mut markers = BTreeMap::new();
     let mut frame_size = None;
     let mut contact = Vec::new();
+    let mut depth = Vec::new();
     if with_markers && frames.len() > 1 {
         let path = dir.join(rundir::names::MARKERS);
         if !path.is_file() || !dir.join(rundir::names::CONTACT).is_file() {
@@ -117,6 +120,7 @@ fn read(dir: &Path, with_markers: bool) -> Result<RunData, RunDirError> {
         }
         frame_size = first_frame_size(dir);
         contact = read_optional(&dir.join(rundir::names::CONTACT))?.unwrap_or_default();
+        depth = read_optional(&dir.join(rundir::names::DEPTH))?.unwrap_or_default();
     }
     Ok(RunData {
         dir: dir.to_path_buf(),
@@ -129,6 +133,7 @@ fn read(dir: &Path, with_markers: bool) -> Result<RunData, RunDirError> {
         markers,
         frame_size,
         contact,
+        depth,
         tactile,
     })
 }

@@ -15,6 +15,7 @@ pub mod ball;
 pub mod calibrate;
 pub mod depth;
 mod farfield;
+pub mod find;
 mod frame;
 pub mod local_linear;
 pub mod lut;
@@ -25,6 +26,7 @@ mod poisson;
 
 pub use calibrate::{Calibration, HeldOut, Press, PressScore, calibrate};
 pub use depth::{Depth, DepthStats};
+pub use find::find_circle;
 pub use frame::Rgb;
 pub use model::{ModelKind, SlopeMap, SlopeModel};
 pub use poisson::Integrator;
@@ -65,4 +67,7 @@ pub enum ShapeError {
     /// Too little to calibrate on.
     #[error("{0}")]
     Calibration(String),
+    /// No contact circle found in a press.
+    #[error("no contact circle found: {0}")]
+    Circle(String),
 }

@@ -4,7 +4,9 @@
 use std::path::PathBuf;
 
 use crate::cli::Exit;
-use crate::shape::{ModelKind, ShapeFile, ShapeFileError, calibrate_dir, write_height_maps};
+use crate::shape::{
+    CirclesFrom, ModelKind, ShapeFile, ShapeFileError, calibrate_dir, write_height_maps,
+};
 
 /// Height maps from frames (`gelrig shape FRAME… --model shape.yaml --background BG.png --out
 /// DIR`), or a calibration on ball presses (`gelrig shape calibrate DIR …`).
@@ -37,7 +39,9 @@ pub(crate) struct Cmd {
 #[derive(clap::Subcommand)]
 enum Action {
     /// Fit the map from colour change to slope on ball presses: DIR holds `background.png`,
-    /// the presses, and `labels.csv` (file, center_x_px, center_y_px, contact_radius_px).
+    /// the presses, and `labels.csv` (file, center_x_px, center_y_px, contact_radius_px)
+    /// where the contact circles were labelled by hand; without it every other PNG is a
+    /// press and its circle is found in the image (and printed).
     Calibrate(Calibrate),
 }
 
@@ -157,6 +161,23 @@ impl Calibrate {
                 h.spurious_worst,
                 f.ms_per_frame
             );
+        }
+        match file.circles_from {
+            CirclesFrom::Labels => {
+                out!("  circles: labels.csv's, each checked against the circle in the image")
+            }
+            CirclesFrom::Image => {
+                out!("  circles: found in the image (no labels.csv); check them:");
+                for p in &file.presses {
+                    out!(
+                        "    {}: centre ({:.1}, {:.1}) px, radius {:.1} px",
+                        p.file,
+                        p.circle.x_px,
+                        p.circle.y_px,
+                        p.circle.radius_px
+                    );
+                }
+            }
         }
         for l in &file.left_out {
             out!("  left out {}: {}", l.file, l.reason);

@@ -4,7 +4,9 @@ use crate::cli::Exit;
 use std::path::{Path, PathBuf};
 
 use crate::track::Method;
-use crate::track::recorded::{Input, Options, Summary, TrackFailure, track};
+use crate::track::recorded::{
+    Input, Options, ShapeReading, Summary, TrackFailure, step_last_frames, track,
+};
 
 /// Track GelSight markers: positions, displacements and states per frame.
 #[derive(clap::Args)]
@@ -65,6 +67,12 @@ pub(crate) struct Cmd {
     /// method, else at a nominal modulus (needs --thickness-mm and an image scale).
     #[arg(long, value_name = "DIR", conflicts_with = "detect_only")]
     traction: Option<PathBuf>,
+    /// A shape calibration (`gelrig shape calibrate`): also read each frame's height map and
+    /// write the contact by depth (deepest point, area deeper than 0.03 mm, centroid,
+    /// volume) to depth.csv beside markers.csv; on a run directory, also the height maps of
+    /// each step's last frame to RUN_DIR/depth/, which the report shows.
+    #[arg(long, value_name = "SHAPE.yaml", conflicts_with_all = ["detect_only", "reference_free"])]
+    shape: Option<PathBuf>,
     /// The elastomer's thickness for uncalibrated traction maps, mm.
     #[arg(long, value_name = "MM", allow_negative_numbers = true)]
     thickness_mm: Option<f64>,
@@ -101,6 +109,14 @@ impl Cmd {
         if !self.numbers_ok(sensor.is_some()) {
             return Ok(Exit::from(super::EXIT_INVALID));
         }
+        let shape = match self.shape.as_deref().map(crate::shape::ShapeFile::read) {
+            Some(Ok(f)) => Some(f),
+            Some(Err(e)) => {
+                err!("error: {e}");
+                return Ok(Exit::from(super::EXIT_INVALID));
+            }
+            None => None,
+        };
         let times = match &input {
             Input::RunDir { dir, .. } => crate::force::frame_times(dir),
             _ => Default::default(),
@@ -116,6 +132,15 @@ impl Cmd {
                 min_change: self.contact_min_change,
                 ..Default::default()
             },
+            shape: shape
+                .as_ref()
+                .zip(self.shape.as_ref())
+                .map(|(f, path)| ShapeReading {
+                    model: f.model(None),
+                    size_px: (f.width_px, f.height_px),
+                    mm_per_px: f.mm_per_px,
+                    path: path.clone(),
+                }),
         };
         let summary = match track(&input, &out, &opts) {
             Ok(s) => s,
@@ -126,6 +151,11 @@ impl Cmd {
             }
         };
         self.print_summary(&summary);
+        if let (Some(file), Input::RunDir { dir, .. }) = (&shape, &input)
+            && let Some(code) = depth_pictures(file, dir, &summary)?
+        {
+            return Ok(code);
+        }
         if let Some(sensor) = &sensor
             && let Some(code) = read_force(sensor, &summary, &times)?
         {
@@ -301,6 +331,12 @@ impl Cmd {
                  ({n} tracked positions)"
             );
         }
+        if let Some(path) = &summary.depth_csv {
+            out!(
+                "wrote {} (the contact read from depth, per frame)",
+                path.display()
+            );
+        }
         if let Some(path) = &summary.contact_csv {
             match summary.largest_contact {
                 Some((frame, r_px)) => out!(
@@ -433,4 +469,39 @@ fn read_force(
     }
     out!("wrote {}", path.display());
     Ok(None)
+}
+
+/// `--shape` on a run directory: the height maps of each step's last frame in
+/// `RUN_DIR/depth/` (with their `shape.csv`), for the report; `Some` exit code where it
+/// cannot.
+fn depth_pictures(
+    file: &crate::shape::ShapeFile,
+    dir: &Path,
+    summary: &Summary,
+) -> anyhow::Result<Option<Exit>> {
+    let steps = match step_last_frames(dir) {
+        Ok(s) => s,
+        Err(e) => {
+            err!("error: {e}");
+            return Ok(Some(Exit::from(super::EXIT_INVALID)));
+        }
+    };
+    let frames: Vec<PathBuf> = steps.into_iter().map(|(_, f)| f).collect();
+    let out = dir.join(crate::runs::names::DEPTH_DIR);
+    match crate::shape::write_height_maps(file, None, &summary.reference_png, &frames, &out, false)
+    {
+        Ok(rows) => {
+            out!(
+                "wrote the height maps of {} steps' last frames to {} (the report shows them)",
+                rows.len(),
+                out.display()
+            );
+            Ok(None)
+        }
+        Err(e @ crate::shape::ShapeFileError::Write { .. }) => Err(e.into()),
+        Err(e) => {
+            err!("error: {e}");
+            Ok(Some(Exit::from(super::EXIT_INVALID)))
+        }
+    }
 }

@@ -45,6 +45,7 @@ pub fn calibrate_dir(
         local_linear: cal.local_linear,
         lut: cal.lut,
         figures: Vec::new(),
+        circles_from: read.circles_from,
         presses: presses
             .iter()
             .map(|p| UsedPress {

@@ -10,6 +10,8 @@ use shape::local_linear::LocalLinear;
 use shape::lut::Lut;
 use shape::{HeldOut, ModelKind, SlopeModel};
 
+use super::CirclesFrom;
+
 /// `format:` of a shape file.
 pub const FORMAT: &str = "gelrig-shape";
 /// The version this build writes and reads.
@@ -87,11 +89,18 @@ pub struct ShapeFile {
     pub lut: Lut,
     /// Each model's figures, local-linear first.
     pub figures: Vec<ModelFigures>,
+    /// Where the presses' circles came from (files before it was kept: labels).
+    #[serde(default = "labels")]
+    pub circles_from: CirclesFrom,
     /// The presses fitted on.
     pub presses: Vec<UsedPress>,
     /// Presses left out, and why.
     #[serde(default)]
     pub left_out: Vec<UsedPressLeftOut>,
+}
+
+fn labels() -> CirclesFrom {
+    CirclesFrom::Labels
 }
 
 /// A press the calibration left out.

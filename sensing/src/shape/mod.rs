@@ -8,6 +8,6 @@ pub mod presses;
 
 pub use file::{ShapeFile, ShapeFileError};
 pub use maps::{ShapeRow, write_height_maps};
-pub use presses::{BallPresses, read_presses};
+pub use presses::{BallPresses, CirclesFrom, read_presses};
 pub mod calibrate;
 pub use calibrate::calibrate_dir;

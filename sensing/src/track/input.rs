@@ -95,6 +95,32 @@ struct FrameEntry {
     file: String,
 }
 
+/// Each step's last frame of a run directory (taken at the end of its settle, where the
+/// report reads the step), as (step, frame file), in step order.
+pub fn step_last_frames(dir: &Path) -> Result<Vec<(u32, PathBuf)>, TrackFailure> {
+    let list = dir.join(rundir::names::FRAMES);
+    let bad = |detail: String| TrackFailure::RunDir {
+        dir: dir.to_path_buf(),
+        detail: format!("frames.csv: {detail}; fix: restore the file from the run's backup"),
+    };
+    let mut rd = csv::Reader::from_path(&list).map_err(|e| bad(e.to_string()))?;
+    let mut last: std::collections::BTreeMap<u32, (u64, String)> = Default::default();
+    for row in rd.deserialize::<FrameEntry>() {
+        let e = row.map_err(|e| bad(e.to_string()))?;
+        let slot = last.entry(e.step).or_insert((e.frame, e.file.clone()));
+        if e.frame >= slot.0 {
+            *slot = (e.frame, e.file);
+        }
+    }
+    last.into_iter()
+        .map(|(step, (_, file))| {
+            rundir::write::run_file(dir, &file)
+                .map(|p| (step, p))
+                .map_err(|d| bad(d.to_string()))
+        })
+        .collect()
+}
+
 /// The reference file, its frame number (when it is one of the input's frames), and the
 /// frames to track as (frame number, file).
 pub(super) type FrameList = (PathBuf, Option<u64>, Vec<(u64, PathBuf)>);

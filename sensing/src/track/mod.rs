@@ -17,6 +17,7 @@ use tracking::field::decompose;
 use tracking::{FrameCheck, MarkerState, Method, Pipeline, RgbView, TrackError, TrackParams};
 
 mod decode;
+mod depth_out;
 mod detect_only;
 mod field_out;
 mod input;
@@ -24,10 +25,12 @@ mod input;
 pub use detect_only::{Detections, detect_only};
 
 use decode::DecodeAhead;
+use depth_out::DepthOut;
+pub use depth_out::ShapeReading;
 use field_out::FieldWriter;
-pub use input::load_rgb;
 pub(crate) use input::run_scale;
 use input::{frame_list, sim_truth};
+pub use input::{load_rgb, step_last_frames};
 use tracking::{ContactParams, ContactRegion};
 
 /// What to track.
@@ -74,6 +77,8 @@ pub struct Options {
     pub decoders: usize,
     /// How the contact region is found.
     pub contact_params: ContactParams,
+    /// Read each frame's height map too, and write `depth.csv` beside `markers.csv`.
+    pub shape: Option<ShapeReading>,
 }
 
 impl Default for Options {
@@ -86,6 +91,7 @@ impl Default for Options {
             mm_per_px: None,
             decoders: 0,
             contact_params: ContactParams::default(),
+            shape: None,
         }
     }
 }
@@ -112,6 +118,10 @@ pub struct Summary {
     pub markers_csv: PathBuf,
     /// Where `contact.csv` went, if asked for.
     pub contact_csv: Option<PathBuf>,
+    /// Where `depth.csv` went, with `--shape`.
+    pub depth_csv: Option<PathBuf>,
+    /// The image of the untouched gel the frames were tracked against.
+    pub reference_png: PathBuf,
     /// Frames with a contact region, and the largest one: (frame, equivalent radius px).
     pub contact_frames: usize,
     /// The largest contact region: frame and equivalent radius, px.
@@ -222,6 +232,13 @@ fn contact_row(frame: u64, c: Option<&ContactRegion>, mm_per_px: Option<f64>) ->
     }
 }
 
+/// A frame the height map cannot be read from (its size is not the reference's).
+fn frame_usage(path: &Path, e: shape::ShapeError) -> TrackFailure {
+    TrackFailure::Usage {
+        detail: format!("frame {}: {e}", path.display()),
+    }
+}
+
 pub(super) fn r4(v: f64) -> f64 {
     (v * 1e4).round() / 1e4
 }
@@ -260,6 +277,18 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         Input::Files { .. } | Input::ReferenceFree { .. } => None,
     });
     let mut writers = Writers::create(out, contact, mm_per_px)?;
+    let mut depth = match &opts.shape {
+        Some(reading) if !reference_free => Some(DepthOut::new(
+            reading,
+            shape::Rgb {
+                width: w,
+                height: h,
+                pixels: &rgb,
+            },
+            out,
+        )?),
+        _ => None,
+    };
     let mut field = match &opts.field_dir {
         Some(d) => Some(FieldWriter::new(d, &pipeline, opts.magnify)?),
         None => None,
@@ -270,6 +299,12 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         writers.frame(no, &shown(&reference_path), &pipeline, None)?;
         if let Some(f) = field.as_mut() {
             f.frame(no, &pipeline)?;
+        }
+        if let Some(d) = depth.as_mut() {
+            d.frame(
+                no,
+                shape::Rgb::new(w, h, &rgb).map_err(|e| frame_usage(&reference_path, e))?,
+            )?;
         }
     }
     // At most 16 decoders: each holds up to three frames in memory.
@@ -307,6 +342,12 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         writers.frame(frame, &shown(&path), &pipeline, Some(&mut tally.counts))?;
         if let Some(f) = field.as_mut() {
             f.frame(frame, &pipeline)?;
+        }
+        if let Some(d) = depth.as_mut() {
+            d.frame(
+                frame,
+                shape::Rgb::new(fw, fh, &rgb).map_err(|e| frame_usage(&path, e))?,
+            )?;
         }
         tally.frame(frame, &pipeline);
         pool.give(rgb);
@@ -349,6 +390,8 @@ pub fn track(input: &Input, out: &Path, opts: &Options) -> Result<Summary, Track
         }),
         markers_csv: out.to_path_buf(),
         contact_csv: writers.contact_path,
+        depth_csv: depth.as_ref().map(|d| d.path().to_path_buf()),
+        reference_png: reference_path.clone(),
         contact_frames: tally.contact_frames,
         largest_contact: tally.largest_contact,
         mm_per_px,

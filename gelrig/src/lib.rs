@@ -259,6 +259,15 @@ pub mod shape {
     };
 }
 
+/// Campaigns: a protocol swept over its parameters (`gelrig sweep`): the sweep file, its
+/// points, shards of a job array, each point's outcome and the Slurm scripts.
+pub mod campaign {
+    pub use ::campaign::{
+        Campaign, CampaignError, Design, Outcome, Params, Point, Range, Shard, Sweep, points,
+        slurm, write_atomic,
+    };
+}
+
 pub mod material {
     pub use sensing::material::{FitError, MaterialFile, MaterialFileError, fit};
 }

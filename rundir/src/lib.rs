@@ -9,6 +9,7 @@
 //! `frames.csv` with `frames/*.png`, `tactile.csv`, `sim_steps.csv` (simulated benches);
 //! `markers.csv` and `contact.csv` once tracked; `run.reserve` while running.
 
+pub mod campaign_dir;
 pub mod export;
 pub mod listing;
 pub mod manifest;

@@ -66,6 +66,18 @@ pub fn list(root: &Path) -> Result<Vec<RunSummary>, String> {
         .map(|e| e.path())
         .filter(|p| p.join(crate::names::MANIFEST).is_file())
         .collect();
+    // A sweep's campaign keeps each point's runs in points/<point>/.
+    if let Ok(points) = std::fs::read_dir(root.join("points")) {
+        for point in points.filter_map(Result::ok) {
+            if let Ok(runs) = std::fs::read_dir(point.path()) {
+                dirs.extend(
+                    runs.filter_map(Result::ok)
+                        .map(|e| e.path())
+                        .filter(|p| p.join(crate::names::MANIFEST).is_file()),
+                );
+            }
+        }
+    }
     dirs.sort();
     Ok(dirs
         .into_iter()

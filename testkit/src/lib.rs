@@ -5,8 +5,8 @@
 //! A skip is printed, and appended as a line to the skip log (`$GELRIG_SKIP_LOG`, else
 //! `target/skipped-checks.txt`), which `.ci/run` counts and prints after the tests (libtest
 //! hides what passing tests print). Under `GELRIG_REQUIRE_<NEED>=1` the same skip is a
-//! failure naming what is missing: CI sets `GELRIG_REQUIRE_DATA`, `_PEERS`, `_BROWSER` and
-//! `_MOUNT`.
+//! failure naming what is missing: CI sets `GELRIG_REQUIRE_DATA`, `_PEERS`, `_BROWSER`,
+//! `_MOUNT` and `_SLURM`.
 //!
 //! A dev-dependency only: nothing a user runs depends on it.
 
@@ -24,6 +24,8 @@ pub enum Need {
     Browser,
     /// A private mount namespace (`unshare -m`) for a small filesystem.
     Mount,
+    /// A running Slurm (`sinfo` answers; `.ci/slurm up` starts one).
+    Slurm,
 }
 
 impl Need {
@@ -34,6 +36,7 @@ impl Need {
             Need::Peers => "PEERS",
             Need::Browser => "BROWSER",
             Need::Mount => "MOUNT",
+            Need::Slurm => "SLURM",
         }
     }
 

@@ -33,6 +33,7 @@ mod settle;
 mod shape;
 mod signals;
 mod support;
+mod sweep;
 mod timing;
 mod track;
 mod unloading;

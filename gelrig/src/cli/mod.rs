@@ -42,6 +42,7 @@ pub(crate) mod runs;
 pub(crate) mod schema;
 pub(crate) mod shape;
 pub(crate) mod sim;
+pub(crate) mod sweep;
 pub(crate) mod track;
 pub(crate) mod validate;
 pub(crate) mod view;
@@ -127,6 +128,8 @@ enum Command {
     Cache(cache::Cmd),
     /// Height maps from frames (slopes from the lights' colours), calibrated on ball presses.
     Shape(shape::Cmd),
+    /// A protocol run over a sweep of its parameters, here (-j N) or as a Slurm job array.
+    Sweep(sweep::Cmd),
 }
 
 /// Runs the command line `args` (the program's name first, as `std::env::args_os` gives it)
@@ -165,6 +168,7 @@ where
         Command::Sim(c) => c.run(),
         Command::Cache(c) => c.run(),
         Command::Shape(c) => c.run(),
+        Command::Sweep(c) => c.run(),
     };
     match result {
         Ok(code) => code,

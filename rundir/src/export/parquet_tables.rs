@@ -101,6 +101,20 @@ struct Table {
     rows: Vec<(usize, HashMap<String, String>)>,
 }
 
+/// Puts each run's parameters (one value per run) on each of its rows, as the first
+/// columns after `run`.
+fn add_parameters(table: &mut Table, params: &[(String, Vec<String>)]) {
+    if table.columns.is_empty() || params.is_empty() {
+        return;
+    }
+    for (name, values) in params.iter().rev() {
+        table.columns.insert(0, name.clone());
+        for (run, row) in &mut table.rows {
+            row.insert(name.clone(), values.get(*run).cloned().unwrap_or_default());
+        }
+    }
+}
+
 fn read_table(path: &Path, run: usize, into: &mut Table) -> Result<(), ExportError> {
     let mut r = csv::Reader::from_path(path).map_err(|e| RunDirError::Missing {
         path: path.to_path_buf(),
@@ -235,7 +249,25 @@ pub struct ParquetExport {
 /// as Parquet files into `out`.
 pub fn export_parquet(path: &Path, out: &Path) -> Result<ParquetExport, ExportError> {
     let campaign = !path.join(crate::names::MANIFEST).is_file();
-    let runs: Vec<PathBuf> = if campaign {
+    // A sweep's campaign: its completed points' runs, their parameters as columns.
+    let swept = match crate::campaign_dir::campaign_runs(path) {
+        Some(Ok(runs)) => Some(runs),
+        Some(Err(detail)) => {
+            return Err(RunDirError::Missing {
+                path: path.join("campaign.csv"),
+                detail,
+            }
+            .into());
+        }
+        None => None,
+    };
+    let params = swept
+        .as_deref()
+        .map(crate::campaign_dir::parameter_columns)
+        .unwrap_or_default();
+    let runs: Vec<PathBuf> = if let Some(swept) = &swept {
+        swept.iter().map(|(d, _)| d.clone()).collect()
+    } else if campaign {
         let mut v: Vec<PathBuf> = std::fs::read_dir(path)
             .map_err(|e| RunDirError::Missing {
                 path: path.to_path_buf(),
@@ -282,6 +314,7 @@ pub fn export_parquet(path: &Path, out: &Path) -> Result<ParquetExport, ExportEr
                 read_table(&csv, k, &mut table)?;
             }
         }
+        add_parameters(&mut table, &params);
         if table.columns.is_empty() {
             continue;
         }

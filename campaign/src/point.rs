@@ -67,6 +67,7 @@ fn name(index: usize, params: &Params) -> String {
         name.push_str(v);
     }
     let safe: String = name
+        .replace('%', "pct")
         .chars()
         .filter(|c| !c.is_whitespace())
         .map(|c| {

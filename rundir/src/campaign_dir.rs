@@ -82,7 +82,7 @@ pub fn parameter_columns(runs: &[CampaignRun]) -> Vec<(String, Vec<String>)> {
                     let name = if u.is_empty() {
                         key.clone()
                     } else {
-                        format!("{key}_{}", u.replace('/', "_per_"))
+                        format!("{key}_{}", u.replace('/', "_per_").replace('%', "pct"))
                     };
                     (
                         name,

@@ -19,12 +19,13 @@ use std::time::{Duration, Instant};
 use crate::support::{gelrig, root};
 
 /// The tutorials, in the guide's order; `every_tutorial_is_run` keeps this list whole.
-const TUTORIALS: [&str; 5] = [
+const TUTORIALS: [&str; 6] = [
     "first-dry-run",
     "real-bench",
     "grasp-trials",
     "calibrate-the-gelsight",
     "your-own-gel",
+    "sweep-campaign",
 ];
 
 /// A tutorial that has not finished by then is stopped and fails (each takes well under a
@@ -236,6 +237,11 @@ fn every_tutorial_is_run() {
             md.display()
         );
     }
+}
+
+#[test]
+fn tutorial_sweep_campaign() {
+    run_tutorial("sweep-campaign");
 }
 
 #[test]

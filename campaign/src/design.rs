@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_yaml::Value;
 
-use crate::sweep::scalar;
+use crate::sweep::{scalar, value_text};
 
 /// One point's parameters, in the design's order: (key, value as text).
 pub type Params = Vec<(String, String)>;
@@ -148,10 +148,10 @@ impl Design {
                     let values: Vec<String> = match vals {
                         Value::Sequence(s) if !s.is_empty() => s
                             .iter()
-                            .map(|x| scalar(x).ok_or_else(|| at("each value a single value")))
+                            .map(|x| value_text(x).ok_or_else(|| at("each value a value")))
                             .collect::<Result<_, _>>()?,
                         Value::Sequence(_) => return Err(at("an empty list")),
-                        other => vec![scalar(other).ok_or_else(|| at("a list of values"))?],
+                        other => vec![value_text(other).ok_or_else(|| at("a list of values"))?],
                     };
                     axes.push((key, values));
                 }
@@ -179,8 +179,8 @@ impl Design {
                     let mut params = Vec::new();
                     for (k, v) in m {
                         let key = scalar(k).unwrap_or_default();
-                        let value = scalar(v)
-                            .ok_or_else(|| (format!(".{i}.{key}"), "a single value".to_string()))?;
+                        let value = value_text(v)
+                            .ok_or_else(|| (format!(".{i}.{key}"), "a value".to_string()))?;
                         params.push((key, value));
                     }
                     points.push(params);

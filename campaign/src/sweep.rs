@@ -115,9 +115,9 @@ impl Sweep {
                 .iter()
                 .map(|(k, v)| {
                     let key = scalar(k).unwrap_or_default();
-                    scalar(v)
+                    value_text(v)
                         .map(|v| (key.clone(), v))
-                        .ok_or_else(|| bad(&format!("set.{key}"), "a single value".into()))
+                        .ok_or_else(|| bad(&format!("set.{key}"), "a value".into()))
                 })
                 .collect::<Result<_, _>>()?,
             Some(_) => return Err(bad("set", "a mapping of KEY: VALUE".into())),
@@ -236,5 +236,14 @@ pub(crate) fn scalar(v: &Value) -> Option<String> {
         Value::Number(n) => Some(n.to_string()),
         Value::Bool(b) => Some(b.to_string()),
         _ => None,
+    }
+}
+
+/// A value as `--set` takes it: a scalar as written, a mapping or list as flow YAML (JSON),
+/// e.g. `{force_window: 10 s, frames: 10}`. `None` for a null.
+pub(crate) fn value_text(v: &Value) -> Option<String> {
+    match v {
+        Value::Mapping(_) | Value::Sequence(_) => serde_json::to_string(v).ok(),
+        other => scalar(other),
     }
 }

@@ -176,3 +176,20 @@ fn resources_set_the_clusters_time_and_memory() {
     let s = sweep("sweep: x\nprotocol: p\ngrid: {seed: [1]}\nresources: {time_per_point: 2 min, memory: 1.5 GB}\n").unwrap();
     assert_eq!((s.time_per_point_s, s.memory_mb), (120.0, 1536));
 }
+
+#[test]
+fn a_mapping_value_goes_to_set_as_flow_yaml() {
+    let s = sweep(
+        "sweep: x\nprotocol: p\nset: {sequence.3.stepped.capture: {force_window: 10 s, frames: 10}}\ngrid:\n  sequence.3.stepped.settle: [{fixed: 60 s}, {fixed: 120 s}]\n",
+    )
+    .unwrap();
+    let p = points(&s).unwrap();
+    assert_eq!(p.len(), 2);
+    assert_eq!(
+        p[1].set,
+        vec![
+            r#"sequence.3.stepped.capture={"force_window":"10 s","frames":10}"#,
+            r#"sequence.3.stepped.settle={"fixed":"120 s"}"#
+        ]
+    );
+}

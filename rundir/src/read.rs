@@ -93,6 +93,11 @@ pub struct ForceRow {
 #[derive(Debug, Clone, Deserialize)]
 pub struct SimRow {
     pub step: u32,
+    #[serde(default)]
+    pub trial: u32,
+    /// The simulator's indentation depth at the step's end, mm (older runs lack it).
+    #[serde(default)]
+    pub depth_mm: Option<f64>,
     pub fz_eq_n: f64,
     pub fx_eq_n: f64,
     pub tz_eq_nmm: f64,
@@ -130,6 +135,12 @@ pub struct FrameRow {
     /// See `fz_n`.
     #[serde(default)]
     pub fy_n: Option<f64>,
+    /// See `fz_n`, N·mm.
+    #[serde(default)]
+    pub tx_nmm: Option<f64>,
+    /// See `fz_n`, N·mm.
+    #[serde(default)]
+    pub ty_nmm: Option<f64>,
     /// See `fz_n`, N·mm.
     #[serde(default)]
     pub tz_nmm: Option<f64>,

@@ -353,3 +353,75 @@ fn a_slurm_array_runs_the_sweep_as_a_local_run_does() {
         .collect();
     assert_eq!(logs.len(), 3, "two array tasks and the merge");
 }
+
+/// `gelrig export CAMPAIGN --format dataset`: Hugging Face `datasets` loads the folder as it
+/// is — every frame a decoded image, the labels typed, the sweep's parameters as columns.
+#[test]
+fn a_campaign_becomes_a_dataset_that_hugging_face_datasets_loads() {
+    if !python_peer(
+        "import datasets",
+        "loading the dataset with Hugging Face datasets",
+        "pip install datasets",
+    ) {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let file = sweep_file(tmp.path(), GRID);
+    let dir = tmp.path().join("c");
+    let out = sweep(&[file.as_os_str(), "--out".as_ref(), dir.as_os_str()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ds = tmp.path().join("ds");
+    let said = gelrig_ok([
+        "export".as_ref(),
+        dir.as_os_str(),
+        "--format".as_ref(),
+        "dataset".as_ref(),
+        "--out".as_ref(),
+        ds.as_os_str(),
+    ]);
+    // box-normal-flat: the reference frame and one a step, 20 steps, 4 runs.
+    assert!(said.contains("84 frames of 4 run(s)"), "{said}");
+    let card = std::fs::read_to_string(ds.join("README.md")).unwrap();
+    assert!(card.contains("path: data/train-*.parquet") && card.contains("`indenter.diameter_mm`"));
+    let script = "import datasets, json, sys\n\
+        ds = datasets.load_dataset(sys.argv[1], split='train', cache_dir=sys.argv[2])\n\
+        r = ds[5]\n\
+        big = [x for x in ds if x['indenter.diameter_mm'] == 9.5 and x['seed'] == 1]\n\
+        deepest = max(big, key=lambda x: x['sim_depth_mm'] or 0)\n\
+        print(json.dumps({'rows': len(ds), 'image': type(r['image']).__name__, 'size': list(r['image'].size),\n\
+            'image_feature': type(ds.features['image']).__name__, 'markers': len(r['marker_dx_px']),\n\
+            'deepest_depth': deepest['sim_depth_mm'], 'deepest_fz': deepest['fz_n'],\n\
+            'deepest_shift': max(abs(v) for v in deepest['marker_dx_px'] + deepest['marker_dy_px']),\n\
+            'indenter': json.loads(r['indenter'])}))\n";
+    let out = Command::new("python3")
+        .args(["-c", script])
+        .arg(&ds)
+        .arg(tmp.path().join("hf-cache"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["rows"], 84, "{v}");
+    assert_eq!(
+        (v["image_feature"].as_str(), v["image"].as_str()),
+        (Some("Image"), Some("PngImageFile"))
+    );
+    assert_eq!(v["size"], serde_json::json!([640, 480]));
+    assert!(v["markers"].as_u64().unwrap() > 100, "{v}");
+    assert_eq!(v["indenter"]["shape"], "flat_circle");
+    // The deepest step: 20 % of the 4.2 mm gel, pressing and moving the markers.
+    assert!(
+        (v["deepest_depth"].as_f64().unwrap() - 0.84).abs() < 0.05,
+        "{v}"
+    );
+    assert!(v["deepest_fz"].as_f64().unwrap() > 5.0, "{v}");
+    assert!(v["deepest_shift"].as_f64().unwrap() > 0.5, "{v}");
+}

@@ -21,9 +21,11 @@
 //! wrench, sim_steps) as a typed file with units in the field metadata; a folder of runs
 //! becomes one file per table with a `run` column ([`parquet_tables`]).
 
+pub mod dataset;
 mod mcap_file;
 pub mod parquet_tables;
 
+pub use dataset::{DatasetExport, export_dataset};
 pub use mcap_file::{ExportError, Exported, export_mcap};
 pub(crate) use mcap_file::{RecordsError, write_records};
 pub use parquet_tables::{ParquetExport, export_parquet};

@@ -248,40 +248,7 @@ pub struct ParquetExport {
 /// Exports `path` — a run directory, or a folder of them (a campaign, with a `run` column) —
 /// as Parquet files into `out`.
 pub fn export_parquet(path: &Path, out: &Path) -> Result<ParquetExport, ExportError> {
-    let campaign = !path.join(crate::names::MANIFEST).is_file();
-    // A sweep's campaign: its completed points' runs, their parameters as columns.
-    let swept = match crate::campaign_dir::campaign_runs(path) {
-        Some(Ok(runs)) => Some(runs),
-        Some(Err(detail)) => {
-            return Err(RunDirError::Missing {
-                path: path.join("campaign.csv"),
-                detail,
-            }
-            .into());
-        }
-        None => None,
-    };
-    let params = swept
-        .as_deref()
-        .map(crate::campaign_dir::parameter_columns)
-        .unwrap_or_default();
-    let runs: Vec<PathBuf> = if let Some(swept) = &swept {
-        swept.iter().map(|(d, _)| d.clone()).collect()
-    } else if campaign {
-        let mut v: Vec<PathBuf> = std::fs::read_dir(path)
-            .map_err(|e| RunDirError::Missing {
-                path: path.to_path_buf(),
-                detail: e.to_string(),
-            })?
-            .filter_map(Result::ok)
-            .map(|e| e.path())
-            .filter(|p| p.join(crate::names::MANIFEST).is_file())
-            .collect();
-        v.sort();
-        v
-    } else {
-        vec![path.to_path_buf()]
-    };
+    let (runs, params, campaign) = runs_of(path)?;
     if runs.is_empty() {
         return Err(RunDirError::Missing {
             path: path.join(crate::names::MANIFEST),
@@ -334,6 +301,51 @@ pub fn export_parquet(path: &Path, out: &Path) -> Result<ParquetExport, ExportEr
         runs,
     })
 }
+
+/// The runs an export covers: one run directory; a folder of runs; or a sweep's campaign
+/// (its completed points' runs, with their parameters as columns). Also whether it is more
+/// than one run's folder.
+pub(crate) fn runs_of(path: &Path) -> Result<RunsOf, ExportError> {
+    let campaign = !path.join(crate::names::MANIFEST).is_file();
+    // A sweep's campaign: its completed points' runs, their parameters as columns.
+    let swept = match crate::campaign_dir::campaign_runs(path) {
+        Some(Ok(runs)) => Some(runs),
+        Some(Err(detail)) => {
+            return Err(RunDirError::Missing {
+                path: path.join("campaign.csv"),
+                detail,
+            }
+            .into());
+        }
+        None => None,
+    };
+    let params = swept
+        .as_deref()
+        .map(crate::campaign_dir::parameter_columns)
+        .unwrap_or_default();
+    let runs: Vec<PathBuf> = if let Some(swept) = &swept {
+        swept.iter().map(|(d, _)| d.clone()).collect()
+    } else if campaign {
+        let mut v: Vec<PathBuf> = std::fs::read_dir(path)
+            .map_err(|e| RunDirError::Missing {
+                path: path.to_path_buf(),
+                detail: e.to_string(),
+            })?
+            .filter_map(Result::ok)
+            .map(|e| e.path())
+            .filter(|p| p.join(crate::names::MANIFEST).is_file())
+            .collect();
+        v.sort();
+        v
+    } else {
+        vec![path.to_path_buf()]
+    };
+    Ok((runs, params, campaign))
+}
+
+/// [`runs_of`]: the run directories, the parameter columns (one value per run), and whether
+/// the path is a folder of runs rather than one.
+pub(crate) type RunsOf = (Vec<PathBuf>, Vec<(String, Vec<String>)>, bool);
 
 #[cfg(test)]
 mod tests {

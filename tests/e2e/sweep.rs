@@ -26,6 +26,19 @@ fn sweep(args: &[&std::ffi::OsStr]) -> std::process::Output {
         .unwrap()
 }
 
+/// The 4-point grid run into `tmp/<name>`: the sweep file and the campaign folder.
+fn grid_campaign(tmp: &Path, name: &str) -> (PathBuf, PathBuf) {
+    let file = sweep_file(tmp, GRID);
+    let dir = tmp.join(name);
+    let out = sweep(&[file.as_os_str(), "--out".as_ref(), dir.as_os_str()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (file, dir)
+}
+
 /// Every point's recorded tables, by point name: the run's steps, force, frames and the
 /// simulator's truth, byte for byte.
 fn tables(campaign: &Path) -> Vec<(String, Vec<Vec<u8>>)> {
@@ -227,14 +240,7 @@ fn parquet_has_the_parameters_as_columns() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let file = sweep_file(tmp.path(), GRID);
-    let dir = tmp.path().join("c");
-    let out = sweep(&[file.as_os_str(), "--out".as_ref(), dir.as_os_str()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let (_, dir) = grid_campaign(tmp.path(), "c");
     let pq = tmp.path().join("pq");
     gelrig_ok([
         "export".as_ref(),
@@ -288,14 +294,7 @@ fn a_slurm_array_runs_the_sweep_as_a_local_run_does() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let file = sweep_file(tmp.path(), GRID);
-    let local = tmp.path().join("local");
-    let out = sweep(&[file.as_os_str(), "--out".as_ref(), local.as_os_str()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let (file, local) = grid_campaign(tmp.path(), "local");
     let cluster = tmp.path().join("cluster");
     let wrote = gelrig_ok([
         "sweep".as_ref(),
@@ -366,14 +365,7 @@ fn a_campaign_becomes_a_dataset_that_hugging_face_datasets_loads() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let file = sweep_file(tmp.path(), GRID);
-    let dir = tmp.path().join("c");
-    let out = sweep(&[file.as_os_str(), "--out".as_ref(), dir.as_os_str()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let (_, dir) = grid_campaign(tmp.path(), "c");
     let ds = tmp.path().join("ds");
     let said = gelrig_ok([
         "export".as_ref(),

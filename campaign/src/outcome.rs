@@ -24,6 +24,9 @@ use crate::point::Point;
 pub struct Outcome {
     /// The point's name.
     pub name: String,
+    /// The point's parameters (as the sweep file gives them) and seed: what its run was.
+    #[serde(default)]
+    pub parameters: std::collections::BTreeMap<String, String>,
     /// `completed` or `failed`.
     pub status: String,
     /// The run's exit code (2: refused, 1: stopped or failed, a signal: none).

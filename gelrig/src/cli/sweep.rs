@@ -419,8 +419,19 @@ fn run_point(
             .take(300)
             .collect()
     };
+    let mut parameters: std::collections::BTreeMap<String, String> =
+        p.params.iter().cloned().collect();
+    parameters.insert("seed".into(), p.seed.to_string());
+    for s in &p.set {
+        if let Some((k, v)) = s.split_once('=') {
+            parameters
+                .entry(k.to_string())
+                .or_insert_with(|| v.to_string());
+        }
+    }
     let outcome = Outcome {
         name: p.name.clone(),
+        parameters,
         status: if completed { "completed" } else { "failed" }.into(),
         exit_code: status.code(),
         message,

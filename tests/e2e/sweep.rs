@@ -358,9 +358,9 @@ fn a_slurm_array_runs_the_sweep_as_a_local_run_does() {
 #[test]
 fn a_campaign_becomes_a_dataset_that_hugging_face_datasets_loads() {
     if !python_peer(
-        "import datasets",
-        "loading the dataset with Hugging Face datasets",
-        "pip install datasets",
+        "import datasets, PIL",
+        "loading the dataset with Hugging Face datasets (and Pillow, which decodes its images)",
+        "pip install datasets pillow",
     ) {
         return;
     }

@@ -71,17 +71,20 @@ pub(super) fn section(data: &RunData, out: &Path) -> Result<Option<DepthSection>
         return Ok(None);
     }
     let mut plots = Vec::new();
-    for (step, _, png) in chosen(&pictured) {
+    let mut shown = Vec::new();
+    for (step, deepest_mm, png) in chosen(&pictured) {
         let name = format!("depth_step_{step:03}");
         let dest = out.join(format!("{name}.png"));
         fs::copy(png, &dest).map_err(|e| werr(&dest)(e.to_string()))?;
         plots.push(name);
+        shown.push(format!("step {step} ({deepest_mm:.3} mm deep)"));
     }
     if !plots.is_empty() {
         text.push_str(&format!(
-            "\nHeight maps of {} step(s) (`depth_step_NNN.png`; brightest is deepest, the \
-             scale is each picture's own): evenly over the steps, the deepest among them.\n",
-            plots.len()
+            "\nHeight maps, in order: {} (`depth_step_NNN.png`; brightest is deepest, each \
+             picture scaled to its own deepest point): evenly over the steps, the deepest among \
+             them.\n",
+            shown.join(", ")
         ));
     }
     Ok(Some((

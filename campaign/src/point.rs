@@ -19,8 +19,10 @@ pub struct Point {
     pub seed: u64,
 }
 
-/// The longest name a point gets (a run directory adds a time stamp before it).
-const MAX_NAME: usize = 96;
+/// The longest name a point gets: its run's name (`gelrig run --name`), which a protocol
+/// caps at 64 characters (a run directory adds a time stamp before it). The index keeps
+/// names cut short apart.
+const MAX_NAME: usize = 64;
 
 /// The points of `sweep`, or the first parameter that cannot be a point's.
 pub fn points(sweep: &Sweep) -> Result<Vec<Point>, String> {
@@ -56,6 +58,22 @@ pub fn points(sweep: &Sweep) -> Result<Vec<Point>, String> {
         .collect()
 }
 
+/// A value as a name shows it: a mapping (`{shape: cylinder, diameter: 4 mm}`, kept as
+/// JSON) by its values alone (`cylinder-4mm`), anything else as written.
+fn value_text(v: &str) -> String {
+    match serde_json::from_str::<serde_json::Value>(v) {
+        Ok(serde_json::Value::Object(m)) => m
+            .values()
+            .map(|x| match x {
+                serde_json::Value::String(s) => s.clone(),
+                other => other.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join("-"),
+        _ => v.to_string(),
+    }
+}
+
 /// `0003_diameter-9.5mm_seed-2`: the index, then each key's last part and its value.
 fn name(index: usize, params: &Params) -> String {
     let mut name = format!("{index:04}");
@@ -64,7 +82,7 @@ fn name(index: usize, params: &Params) -> String {
         name.push('_');
         name.push_str(short);
         name.push('-');
-        name.push_str(v);
+        name.push_str(&value_text(v));
     }
     let safe: String = name
         .replace('%', "pct")

@@ -37,6 +37,25 @@ fn a_grid_is_every_combination_the_last_key_fastest() {
     assert_eq!(names.len(), 6);
 }
 
+/// A mapping value (a whole indenter) names its point by its values, and a name is cut to
+/// the 64 characters a run's name may have.
+#[test]
+fn mapping_values_name_points_by_their_values_within_a_runs_name() {
+    let s = sweep(
+        "sweep: x\nprotocol: p\ngrid:\n  indenter:\n    - {shape: cylinder, diameter: 4 mm, length: 15 mm}\n  sequence.3.stepped.a_very_long_parameter_name: [a value long enough to be cut]\n",
+    )
+    .unwrap();
+    let p = points(&s).unwrap();
+    assert!(
+        p[0].name
+            .starts_with("0000_indenter-4mm-15mm-cylinder_a_very_long"),
+        "{}",
+        p[0].name
+    );
+    assert_eq!(p[0].name.len(), 64, "{}", p[0].name);
+    assert!(p[0].set[0].starts_with("indenter={"), "{:?}", p[0].set);
+}
+
 #[test]
 fn a_path_is_taken_from_the_sweep_files_folder() {
     let s = sweep("sweep: x\nprotocol: ../protocols/mine.yaml\nlist: [{seed: 4}]\n").unwrap();

@@ -117,7 +117,7 @@ pub struct Plan {
     pub axes_rows: Range,
     /// Bytes written: CSVs, journal and frames (PNG bounded by raw RGB size).
     pub bytes: Range,
-    /// Bytes of one frame, upper bound.
+    /// Bytes of one frame, upper bound (its traction maps included, when recorded).
     pub frame_bytes: u64,
     /// What a simulated bench solves and leaves out (none on a real rig).
     pub sim: Option<crate::sim_models::SimModels>,
@@ -361,7 +361,14 @@ pub fn plan(protocol: &Protocol, compiled: &Compiled, rig: &RigConfig) -> Plan {
     let frame_bytes = rig
         .camera
         .as_ref()
-        .map(|c| c.width as u64 * c.height as u64 * 3 + 1024)
+        .map(|c| {
+            // With traction maps, each frame also writes its four float32 maps and a row.
+            let maps = protocol.record.traction_maps.map_or(0, |k| {
+                let k = u64::from(k.max(1));
+                (c.width as u64 / k) * (c.height as u64 / k) * 16 + 256
+            });
+            c.width as u64 * c.height as u64 * 3 + 1024 + maps
+        })
         .unwrap_or(0);
     let n_axes = compiled.needs.axes.len() as f64;
     let mut streams: Vec<StreamRates> = Vec::new();

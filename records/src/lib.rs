@@ -9,7 +9,7 @@ pub mod readings;
 pub mod units;
 
 pub use readings::{
-    DeviceTiming, ForceSample, Frame, GraspTruth, STATUS_SATURATED, SimTruth, Wrench,
+    DeviceTiming, ForceSample, Frame, GraspTruth, STATUS_SATURATED, SimTruth, SurfaceTruth, Wrench,
 };
 
 /// Device text as it may appear in a message: a garbled reply can be megabytes of

@@ -189,4 +189,41 @@ pub struct Frame {
     /// The true exposure midpoint, ns, when the camera is simulated (what `t_ns` is
     /// measured against); `None` from a real camera.
     pub truth_t_ns: Option<u64>,
+    /// The simulator's tractions and contact under this frame, when a simulated camera was
+    /// asked for them (a dataset run's `record: {traction_maps: true}`); `None` otherwise.
+    pub truth_surface: Option<Box<SurfaceTruth>>,
+}
+
+/// What the simulator knew of the gel's surface under one frame: the tractions the indenter
+/// put on it, as maps on a grid `px_per_cell` times coarser than the frame (cell (i, j)
+/// covers frame pixels `[i·k, (i+1)·k) × [j·k, (j+1)·k)`), and the contact's state. Labels no
+/// real bench can measure, for learning force and contact from images.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SurfaceTruth {
+    /// Map width, cells.
+    pub width: u32,
+    /// Map height, cells.
+    pub height: u32,
+    /// Frame pixels per map cell, along each side.
+    pub px_per_cell: u32,
+    /// Map cell side on the gel, mm.
+    pub cell_mm: f64,
+    /// Normal pressure, compressive positive, kPa (the cell's mean), row-major.
+    pub pressure_kpa: Vec<f32>,
+    /// Tangential traction on the gel along the frame's x (right), kPa.
+    pub shear_x_kpa: Vec<f32>,
+    /// Tangential traction on the gel along the frame's y (down), kPa.
+    pub shear_y_kpa: Vec<f32>,
+    /// 1 where the cell's centre is in contact (pressure there above 1 % of the frame's peak).
+    pub contact: Vec<u8>,
+    /// Indentation depth, mm.
+    pub depth_mm: f64,
+    /// Tangential force the contact carries along x (its elastic part), N.
+    pub shear_n: f64,
+    /// Twisting moment the contact carries (its elastic part), N·mm.
+    pub torque_nmm: f64,
+    /// Where the contact's centre is in the view, mm from the view's centre (x right, y down).
+    pub centre_mm: (f64, f64),
+    /// How far the contact has turned by slipping, rad.
+    pub rotation_rad: f64,
 }

@@ -11,7 +11,7 @@ use serde::Serialize;
 use crate::RigError;
 use crate::units::AxisUnit;
 pub use records::{
-    DeviceTiming, ForceSample, Frame, GraspTruth, STATUS_SATURATED, SimTruth, Wrench,
+    DeviceTiming, ForceSample, Frame, GraspTruth, STATUS_SATURATED, SimTruth, SurfaceTruth, Wrench,
 };
 
 /// What a runner needs to know about an axis before moving it.

@@ -14,6 +14,7 @@ pub mod export;
 pub mod listing;
 pub mod manifest;
 pub mod names;
+pub mod npy;
 pub mod read;
 pub mod resumed;
 mod ros2;

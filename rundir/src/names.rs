@@ -25,6 +25,10 @@ pub const TACTILE: &str = "tactile.csv";
 pub const SIM_STEPS: &str = "sim_steps.csv";
 /// The simulated camera's exact marker centres.
 pub const SIM_MARKERS: &str = "sim_markers.csv";
+/// The simulator's state and loads per frame, when the run recorded traction maps.
+pub const SIM_FRAMES: &str = "sim_frames.csv";
+/// The simulator's traction maps per frame, `sim_maps/NNNNNN.npy`.
+pub const SIM_MAPS_DIR: &str = "sim_maps";
 /// The tracked markers, once tracked.
 pub const MARKERS: &str = "markers.csv";
 /// The contact region per frame, once tracked.
@@ -49,6 +53,12 @@ pub const REPORT_DIR: &str = "report";
 /// The image file of frame `index`, relative to the run directory.
 pub fn frame_png(index: u64) -> String {
     format!("{FRAMES_DIR}/{index:06}.png")
+}
+
+/// The traction maps of frame `index`, relative to the run directory: float32, shape
+/// (4, H, W): pressure, shear x, shear y (kPa), contact (0 or 1).
+pub fn sim_maps_npy(index: u64) -> String {
+    format!("{SIM_MAPS_DIR}/{index:06}.npy")
 }
 
 #[cfg(test)]

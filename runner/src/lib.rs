@@ -422,6 +422,7 @@ async fn open_bench(loaded: &Loaded, clock: &Clock, seed: u64) -> Result<Rig, St
         plant,
         clock: clock.clone(),
         seed,
+        traction_maps_px: loaded.protocol.record.traction_maps,
     };
     let config = loaded.rig.clone();
     let handle = tokio::runtime::Handle::current();

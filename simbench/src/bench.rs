@@ -73,6 +73,7 @@ fn request(axes: &[AxisRole], force: bool, camera: bool) -> OpenRequest {
         plant: None,
         clock: Clock::new(ClockMode::Monotonic),
         seed: 0,
+        traction_maps_px: None,
     }
 }
 

@@ -10,6 +10,7 @@ use mechanics::response::ContactModel;
 use super::frame_timing::FrameTiming;
 use super::plant::Plant;
 use super::render::{Renderer, SurfaceView};
+use super::surface_truth::surface_truth;
 use rig::device::{Camera, CameraInfo, DeviceTiming, Frame};
 use rig::{Clock, RigError, lock};
 
@@ -25,6 +26,9 @@ pub(crate) struct SimCamera {
     model: ContactModel,
     /// Mixed into the frame number for the sensor noise: each seed sees its own noise.
     noise_key: u64,
+    /// Frame pixels per cell of the traction maps handed with each frame; `None`: no maps
+    /// (only a dataset run asks for them).
+    maps_px_per_cell: Option<u32>,
 }
 
 impl SimCamera {
@@ -34,6 +38,7 @@ impl SimCamera {
         plant: Arc<Mutex<Plant>>,
         clock: Clock,
         seed: u64,
+        maps_px_per_cell: Option<u32>,
     ) -> Self {
         let (renderer, model) = {
             let p = lock(&plant);
@@ -50,6 +55,7 @@ impl SimCamera {
             renderer,
             model,
             noise_key: seed.wrapping_mul(0xD1B5_4A32_D192_ED03),
+            maps_px_per_cell,
         }
     }
 }
@@ -70,7 +76,14 @@ impl Camera for SimCamera {
         // when it arrives.
         self.clock.sleep_until_ns(times.exposure_mid_ns).await;
         let pose = lock(&self.plant).surface_pose(times.exposure_mid_ns);
-        let surface = self.model.field(pose.state).map(|field| SurfaceView {
+        let (surface, tractions) = match self.maps_px_per_cell {
+            Some(_) => match self.model.field_and_tractions(pose.state) {
+                Some((f, t)) => (Some(f), Some(t)),
+                None => (None, None),
+            },
+            None => (self.model.field(pose.state), None),
+        };
+        let surface = surface.map(|field| SurfaceView {
             field,
             centre_mm: pose.centre_mm,
             rotation_rad: pose.rotation_rad,
@@ -78,6 +91,16 @@ impl Camera for SimCamera {
         let (rgb, truth) = self
             .renderer
             .render(surface.as_ref(), times.seq ^ self.noise_key);
+        let truth_surface = match (&surface, &tractions, self.maps_px_per_cell) {
+            (Some(view), Some(t), Some(k)) => {
+                let mut maps = surface_truth(&self.renderer, view, t, k);
+                maps.depth_mm = pose.state.depth_mm;
+                maps.shear_n = pose.state.shear_n;
+                maps.torque_nmm = pose.state.torque_nmm;
+                Some(Box::new(maps))
+            }
+            _ => None,
+        };
         // Stamped at its arrival, as the kernel stamps a buffer: not when this task wakes
         // (a timer tick later on a real clock).
         self.clock.sleep_until_ns(times.arrival_ns).await;
@@ -90,6 +113,7 @@ impl Camera for SimCamera {
             rgb,
             truth_px: Some(truth),
             truth_t_ns: Some(times.exposure_mid_ns),
+            truth_surface,
         })
     }
 }

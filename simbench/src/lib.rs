@@ -24,6 +24,7 @@ mod grasp;
 pub(crate) mod plant;
 pub mod render;
 pub mod scenes;
+pub mod surface_truth;
 mod twin_plant;
 
 pub mod bench;

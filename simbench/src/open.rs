@@ -34,6 +34,9 @@ pub struct OpenRequest {
     pub clock: Clock,
     /// Seed for everything random in simulated devices.
     pub seed: u64,
+    /// A simulated camera hands the simulator's traction maps with each frame, on cells of
+    /// this many pixels a side (a dataset run's `record: {traction_maps: …}`); `None`: not.
+    pub traction_maps_px: Option<u32>,
 }
 
 /// Identity of an opened device, for the run manifest.
@@ -340,7 +343,14 @@ fn open_camera(
                     cfg.fps.hz()
                 ),
             };
-            Box::new(SimCamera::new(info, timing, p, req.clock.clone(), req.seed))
+            Box::new(SimCamera::new(
+                info,
+                timing,
+                p,
+                req.clock.clone(),
+                req.seed,
+                req.traction_maps_px,
+            ))
         }
         CameraDriver::ImageFolder => {
             let path = std::path::PathBuf::from(cfg.path.clone().unwrap_or_default());

@@ -212,6 +212,7 @@ fn load_text(
         &protocol,
         &compiled,
     ));
+    diags.extend(traction_maps_issue(protocol_path, &text, &protocol, &rig));
     for i in &compiled.issues {
         let (file, src) = if i.in_rig {
             (&rig_path, &rig_text)
@@ -341,6 +342,57 @@ fn gelsight_force_issue(
     } else {
         None
     }
+}
+
+/// Frame pixels per traction-map cell `record: {traction_maps: N}` accepts.
+pub const TRACTION_MAP_PX: std::ops::RangeInclusive<u32> = 1..=32;
+
+/// `record: {traction_maps: N}` needs a simulated camera (the maps are the simulator's) and a
+/// cell size within [`TRACTION_MAP_PX`].
+fn traction_maps_issue(
+    protocol_path: &Path,
+    text: &str,
+    protocol: &Protocol,
+    rig: &rig::config::RigConfig,
+) -> Option<Diagnostic> {
+    let px = protocol.record.traction_maps?;
+    let at = rig::config::YamlPath::root()
+        .key("record")
+        .key("traction_maps");
+    let sim_camera = rig
+        .camera
+        .as_ref()
+        .is_some_and(|c| matches!(c.driver, rig::config::CameraDriver::Sim));
+    let (message, fix) = if !TRACTION_MAP_PX.contains(&px) {
+        (
+            format!(
+                "traction maps of {px} px cells: the cell size is {} to {} frame pixels",
+                TRACTION_MAP_PX.start(),
+                TRACTION_MAP_PX.end()
+            ),
+            "write `traction_maps: 4` (160 × 120 maps of a 640 × 480 frame)".to_string(),
+        )
+    } else if !sim_camera {
+        (
+            format!(
+                "traction maps are the simulator's, and rig `{}` has no simulated camera",
+                rig.name
+            ),
+            "remove `traction_maps:`, or run on a rig with `camera: {driver: sim}` \
+             (`--rig protocols/rigs/sim.yaml`)"
+                .to_string(),
+        )
+    } else {
+        return None;
+    };
+    Some(Diagnostic::at_path(
+        protocol_path,
+        text,
+        &at,
+        Severity::Error,
+        message,
+        fix,
+    ))
 }
 
 /// A run that would write more than the data budget, named with its frames, rows and time.

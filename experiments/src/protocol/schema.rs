@@ -222,6 +222,12 @@ pub struct Streams {
     /// blocks), beside the force sensor, in `tactile.csv`'s `gelsight_*` columns.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gelsight_force: Option<String>,
+    /// The simulator's pressure and shear-traction maps and contact mask under every
+    /// recorded frame, on cells of this many frame pixels a side (`4`: 160 × 120 maps of a
+    /// 640 × 480 frame), to `sim_maps/` and `sim_frames.csv`: labels for a learning dataset
+    /// (`gelrig export --format dataset`). Simulated cameras only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub traction_maps: Option<u32>,
 }
 
 /// One block of the sequence.

@@ -227,6 +227,22 @@ pub struct Field {
     pub uz: Vec<f64>,
 }
 
+/// The tractions the indenter puts on the gel's surface in one state, on the grid of the
+/// [`Field`] they make (cell averages, MPa): what [`ContactModel::field_and_tractions`]
+/// hands beside the field, for labels no real bench can measure (a dataset's pressure and
+/// shear maps).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tractions {
+    /// The grid (the field's).
+    pub grid: Grid,
+    /// Normal pressure, compressive positive, MPa.
+    pub pressure_mpa: Vec<f64>,
+    /// Tangential traction along x, MPa.
+    pub shear_x_mpa: Vec<f64>,
+    /// Tangential traction along y, MPa.
+    pub shear_y_mpa: Vec<f64>,
+}
+
 /// A contact state for [`ContactModel::field`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct State {

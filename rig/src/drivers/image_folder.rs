@@ -116,6 +116,7 @@ impl Camera for ImageFolderCamera {
             rgb: img.into_raw(),
             truth_px: None,
             truth_t_ns: None,
+            truth_surface: None,
         })
     }
 }

@@ -165,6 +165,7 @@ impl V4l2Camera {
                             rgb: yuyv_to_rgb(buf, w as usize, h as usize),
                             truth_px: None,
                             truth_t_ns: None,
+                            truth_surface: None,
                         })
                     }
                     Err(e) => Err(e.to_string()),

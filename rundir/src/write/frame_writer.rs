@@ -18,7 +18,7 @@ use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use records::Frame;
 
 use super::files::{CsvFile, write_new};
-use super::rows::{FrameForce, FrameRow, MarkerTruthRow, round6};
+use super::rows::{FrameForce, FrameRow, MarkerTruthRow, SimFrameRow, round6};
 use super::{RecordError, append_to};
 
 /// Frames queued before the plan waits for the encoder.
@@ -157,18 +157,24 @@ fn run(
     mcap: Option<super::mcap_live::LiveMcap>,
 ) {
     let mut markers: Option<CsvFile> = None;
+    let mut sim_frames: Option<CsvFile> = None;
     while let Ok(job) = rx.recv() {
-        let done = match job {
-            Job::Frame(f) => write(&dir, &mut frames, &mut markers, &f, mcap.as_ref()),
-            Job::Sync(ack) => {
-                let synced = [Some(&mut frames), markers.as_mut()]
-                    .into_iter()
-                    .flatten()
-                    .try_for_each(CsvFile::sync);
-                let _ = ack.send(());
-                synced
-            }
-        };
+        let done =
+            match job {
+                Job::Frame(f) => write(&dir, &mut frames, &mut markers, &f, mcap.as_ref())
+                    .and_then(|()| match &f.frame.truth_surface {
+                        Some(t) => write_maps(&dir, &mut sim_frames, f.n, t),
+                        None => Ok(()),
+                    }),
+                Job::Sync(ack) => {
+                    let synced = [Some(&mut frames), markers.as_mut(), sim_frames.as_mut()]
+                        .into_iter()
+                        .flatten()
+                        .try_for_each(CsvFile::sync);
+                    let _ = ack.send(());
+                    synced
+                }
+            };
         if let Err(e) = done {
             *error.lock().unwrap_or_else(PoisonError::into_inner) = Some(e);
             return;
@@ -251,4 +257,56 @@ fn write(
         }
     }
     Ok(())
+}
+
+/// The simulator's traction maps of frame `n` (`sim_maps/NNNNNN.npy`, written whole then
+/// renamed), then its row in `sim_frames.csv`: a row never names a missing file.
+fn write_maps(
+    dir: &std::path::Path,
+    sim_frames: &mut Option<CsvFile>,
+    n: u64,
+    t: &records::SurfaceTruth,
+) -> Result<(), RecordError> {
+    let file = crate::names::sim_maps_npy(n);
+    let path = dir.join(&file);
+    let (w, h) = (t.width as usize, t.height as usize);
+    let cells = w * h;
+    let channels = [&t.pressure_kpa, &t.shear_x_kpa, &t.shear_y_kpa];
+    if channels.iter().any(|c| c.len() != cells) || t.contact.len() != cells {
+        return Err(RecordError::Frame {
+            path,
+            detail: format!("traction maps that are not {w}×{h}"),
+        });
+    }
+    let maps_dir = dir.join(crate::names::SIM_MAPS_DIR);
+    std::fs::create_dir_all(&maps_dir).map_err(|e| RecordError::Io {
+        path: maps_dir.clone(),
+        source: e,
+    })?;
+    let mut data = Vec::with_capacity(4 * cells);
+    for c in channels {
+        data.extend_from_slice(c);
+    }
+    data.extend(t.contact.iter().map(|&v| f32::from(v)));
+    write_new(&path, &crate::npy::encode(&data, &[4, h, w]))?;
+    // Loads from the maps: Σ traction × cell area (kPa·mm² = mN).
+    let area = t.cell_mm * t.cell_mm;
+    let load = |c: &[f32]| c.iter().map(|&v| f64::from(v)).sum::<f64>() * area / 1000.0;
+    let contact = t.contact.iter().filter(|&&v| v != 0).count() as f64 * area;
+    let row = SimFrameRow {
+        frame: n,
+        maps: &file,
+        depth_mm: round6(t.depth_mm),
+        shear_n: round6(t.shear_n),
+        torque_nmm: round6(t.torque_nmm),
+        centre_x_mm: round6(t.centre_mm.0),
+        centre_y_mm: round6(t.centre_mm.1),
+        rotation_rad: round6(t.rotation_rad),
+        fz_n: round6(load(&t.pressure_kpa)),
+        fx_n: round6(load(&t.shear_x_kpa)),
+        fy_n: round6(load(&t.shear_y_kpa)),
+        contact_area_mm2: round6(contact),
+        cell_mm: t.cell_mm,
+    };
+    append_to(sim_frames, dir.join(crate::names::SIM_FRAMES), &row)
 }

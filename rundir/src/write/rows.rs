@@ -140,6 +140,24 @@ pub(super) struct MarkerTruthRow {
     pub(super) y_px: f64,
 }
 
+/// `sim_frames.csv`: the simulator's contact under one frame, and its maps' file.
+#[derive(Serialize)]
+pub(super) struct SimFrameRow<'a> {
+    pub(super) frame: u64,
+    pub(super) maps: &'a str,
+    pub(super) depth_mm: f64,
+    pub(super) shear_n: f64,
+    pub(super) torque_nmm: f64,
+    pub(super) centre_x_mm: f64,
+    pub(super) centre_y_mm: f64,
+    pub(super) rotation_rad: f64,
+    pub(super) fz_n: f64,
+    pub(super) fx_n: f64,
+    pub(super) fy_n: f64,
+    pub(super) contact_area_mm2: f64,
+    pub(super) cell_mm: f64,
+}
+
 #[derive(Serialize, Default)]
 pub(super) struct SimStepRow {
     pub(super) step: u32,

@@ -118,23 +118,10 @@ pub fn write_height_maps(
     Ok(rows)
 }
 
-/// NumPy's `.npy` format, version 1.0: a little-endian float32 C-ordered H×W array
-/// (numpy.org/neps/nep-0001-npy-format), written whole then renamed.
+/// The height map as NumPy `.npy` (float32, H×W; `rundir::npy`), written whole then renamed.
 fn write_npy(path: &Path, data: &[f32], w: usize, h: usize) -> std::io::Result<()> {
-    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({h}, {w}), }}");
-    // Magic (6) + version (2) + length (2) + header + '\n' to a multiple of 64.
-    let total = (10 + header.len() + 1).div_ceil(64) * 64;
-    header.push_str(&" ".repeat(total - 10 - header.len() - 1));
-    header.push('\n');
-    let mut bytes = Vec::with_capacity(total + 4 * data.len());
-    bytes.extend_from_slice(b"\x93NUMPY\x01\x00");
-    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    bytes.extend_from_slice(header.as_bytes());
-    for v in data {
-        bytes.extend_from_slice(&v.to_le_bytes());
-    }
     let tmp = path.with_extension("npy.partial");
-    std::fs::write(&tmp, bytes)?;
+    std::fs::write(&tmp, rundir::npy::encode(data, &[h, w]))?;
     std::fs::rename(&tmp, path)
 }
 

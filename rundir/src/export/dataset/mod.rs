@@ -13,16 +13,15 @@
 use std::collections::HashMap;
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-
-use arrow_array::builder::{BinaryBuilder, Float32Builder, ListBuilder, StringBuilder};
-use arrow_array::{
-    Array, ArrayRef, Float64Array, Int64Array, RecordBatch, StringArray, StructArray,
-};
-use arrow_schema::{DataType, Field, Fields, Schema};
 
 use super::ExportError;
 use super::parquet_tables::runs_of;
+use card::card_text;
+use columns::batch;
+
+mod card;
+mod columns;
+mod maps;
 use crate::read::{FrameRow, SimRow, StepRow, read_csv, read_optional};
 
 /// Frames per Parquet shard: about 50 MB of 640×480 PNGs, and what the export holds in memory
@@ -43,19 +42,20 @@ pub struct DatasetExport {
 }
 
 /// One frame's row, before it becomes columns.
-struct Row {
+pub(super) struct Row {
     png: Vec<u8>,
     file: String,
     run: String,
     params: Vec<String>,
-    ints: [Option<i64>; 3],
+    ints: [Option<i64>; 5],
     floats: Vec<Option<f64>>,
     texts: [String; 3],
     markers: [Vec<f32>; 4],
+    maps: Option<maps::FrameMaps>,
 }
 
-const INTS: [&str; 3] = ["frame", "step", "t_ns"];
-const FLOATS: [&str; 12] = [
+pub(super) const INTS: [&str; 5] = ["frame", "step", "t_ns", "maps_width", "maps_height"];
+pub(super) const FLOATS: [&str; 21] = [
     "fx_n",
     "fy_n",
     "fz_n",
@@ -68,9 +68,44 @@ const FLOATS: [&str; 12] = [
     "sim_fz_n",
     "sim_fx_n",
     "sim_tz_nmm",
+    "sim_frame_depth_mm",
+    "sim_frame_shear_n",
+    "sim_frame_torque_nmm",
+    "sim_centre_x_mm",
+    "sim_centre_y_mm",
+    "sim_rotation_rad",
+    "sim_frame_fz_n",
+    "sim_contact_area_mm2",
+    "maps_cell_mm",
 ];
-const TEXTS: [&str; 3] = ["position_unit", "axis", "indenter"];
-const MARKERS: [&str; 4] = ["marker_x_px", "marker_y_px", "marker_dx_px", "marker_dy_px"];
+/// The label columns with no list above.
+const OTHER_COLUMNS: [&str; 6] = [
+    "image",
+    "run",
+    "pressure_kpa",
+    "shear_x_kpa",
+    "shear_y_kpa",
+    "contact_mask",
+];
+
+/// A sweep parameter's column: its name, or `sweep.NAME` where a label has that name (a
+/// sweep over whole indenters has a parameter `indenter`, and the label `indenter` is the
+/// protocol's; two columns of one name are refused by every Parquet reader).
+pub(super) fn param_column(name: &str) -> String {
+    let taken = INTS.contains(&name)
+        || FLOATS.contains(&name)
+        || TEXTS.contains(&name)
+        || MARKERS.contains(&name)
+        || OTHER_COLUMNS.contains(&name);
+    match taken {
+        true => format!("sweep.{name}"),
+        false => name.to_string(),
+    }
+}
+
+pub(super) const TEXTS: [&str; 3] = ["position_unit", "axis", "indenter"];
+pub(super) const MARKERS: [&str; 4] =
+    ["marker_x_px", "marker_y_px", "marker_dx_px", "marker_dy_px"];
 
 /// Writes the dataset of `path` (a run, a folder of runs, a campaign) into `out`.
 pub fn export_dataset(path: &Path, out: &Path) -> Result<DatasetExport, ExportError> {
@@ -90,7 +125,7 @@ pub fn export_dataset(path: &Path, out: &Path) -> Result<DatasetExport, ExportEr
         }
         .into());
     }
-    let names: Vec<String> = params.iter().map(|(n, _)| n.clone()).collect();
+    let names: Vec<String> = params.iter().map(|(n, _)| param_column(n)).collect();
     let count = total.div_ceil(SHARD_ROWS);
     let mut shards = Vec::new();
     let mut pending: Vec<Row> = Vec::with_capacity(SHARD_ROWS);
@@ -141,8 +176,12 @@ fn frame_count(run: &Path) -> usize {
 fn write_shard(file: &Path, rows: &[Row], names: &[String]) -> Result<(), String> {
     let batch = batch(rows, names)?;
     let f = File::create(file).map_err(|e| e.to_string())?;
-    let mut w =
-        parquet::arrow::ArrowWriter::try_new(f, batch.schema(), None).map_err(|e| e.to_string())?;
+    // Snappy: the maps are mostly zeros beyond the contact.
+    let props = parquet::file::properties::WriterProperties::builder()
+        .set_compression(parquet::basic::Compression::SNAPPY)
+        .build();
+    let mut w = parquet::arrow::ArrowWriter::try_new(f, batch.schema(), Some(props))
+        .map_err(|e| e.to_string())?;
     w.write(&batch).map_err(|e| e.to_string())?;
     w.close().map_err(|e| e.to_string())?;
     Ok(())
@@ -154,6 +193,7 @@ fn run_rows(run: &Path, params: &[String]) -> Result<Vec<Row>, ExportError> {
     let steps: Vec<StepRow> = read_optional(&run.join(crate::names::STEPS))?.unwrap_or_default();
     let sim: Vec<SimRow> = read_optional(&run.join(crate::names::SIM_STEPS))?.unwrap_or_default();
     let markers = sim_markers(&run.join(crate::names::SIM_MARKERS));
+    let sim_frames = maps::sim_frames(run)?;
     let first: Option<&Vec<[f32; 2]>> = frames.first().and_then(|f| markers.get(&f.frame));
     let indenter = indenter_json(&run.join(crate::names::PROTOCOL));
     let name = run
@@ -187,6 +227,8 @@ fn run_rows(run: &Path, params: &[String]) -> Result<Vec<Row>, ExportError> {
                 m[3].push(p[1] - start[1]);
             }
         }
+        let sf = sim_frames.get(&f.frame);
+        let frame_maps = sf.map(|s| maps::read_maps(run, s)).transpose()?;
         rows.push(Row {
             png,
             file: format!("{name}/{file}"),
@@ -196,6 +238,8 @@ fn run_rows(run: &Path, params: &[String]) -> Result<Vec<Row>, ExportError> {
                 Some(f.frame as i64),
                 Some(i64::from(f.step)),
                 Some(f.t_ns as i64),
+                frame_maps.as_ref().map(|m| m.width as i64),
+                frame_maps.as_ref().map(|m| m.height as i64),
             ],
             floats: vec![
                 f.fx_n,
@@ -210,6 +254,15 @@ fn run_rows(run: &Path, params: &[String]) -> Result<Vec<Row>, ExportError> {
                 truth.map(|s| s.fz_eq_n),
                 truth.map(|s| s.fx_eq_n),
                 truth.map(|s| s.tz_eq_nmm),
+                sf.map(|s| s.depth_mm),
+                sf.map(|s| s.shear_n),
+                sf.map(|s| s.torque_nmm),
+                sf.map(|s| s.centre_x_mm),
+                sf.map(|s| s.centre_y_mm),
+                sf.map(|s| s.rotation_rad),
+                sf.map(|s| s.fz_n),
+                sf.map(|s| s.contact_area_mm2),
+                sf.map(|s| s.cell_mm),
             ],
             texts: [
                 step.map(|s| s.unit.clone()).unwrap_or_default(),
@@ -217,6 +270,7 @@ fn run_rows(run: &Path, params: &[String]) -> Result<Vec<Row>, ExportError> {
                 indenter.clone(),
             ],
             markers: m,
+            maps: frame_maps,
         });
     }
     Ok(rows)
@@ -249,141 +303,16 @@ fn indenter_json(protocol: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// Columns being built: their fields, arrays and `datasets` features.
-#[derive(Default)]
-struct Columns {
-    fields: Vec<Field>,
-    arrays: Vec<ArrayRef>,
-    features: serde_json::Map<String, serde_json::Value>,
-}
-
-fn value(dtype: &str) -> serde_json::Value {
-    serde_json::json!({"dtype": dtype, "_type": "Value"})
-}
-
-impl Columns {
-    fn push(&mut self, name: &str, array: ArrayRef, feature: serde_json::Value) {
-        self.fields
-            .push(Field::new(name, array.data_type().clone(), true));
-        self.arrays.push(array);
-        self.features.insert(name.into(), feature);
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_parameter_named_as_a_label_gets_its_own_column() {
+        assert_eq!(super::param_column("indenter"), "sweep.indenter");
+        assert_eq!(super::param_column("pressure_kpa"), "sweep.pressure_kpa");
+        assert_eq!(
+            super::param_column("indenter.diameter_mm"),
+            "indenter.diameter_mm"
+        );
+        assert_eq!(super::param_column("seed"), "seed");
     }
-
-    fn text(&mut self, name: &str, values: Vec<&str>) {
-        self.push(name, Arc::new(StringArray::from(values)), value("string"));
-    }
-
-    fn floats(&mut self, name: &str, values: Vec<Option<f64>>) {
-        self.push(name, Arc::new(Float64Array::from(values)), value("float64"));
-    }
-}
-
-/// The rows as one record batch, with the `huggingface` features in the schema's metadata.
-fn batch(rows: &[Row], params: &[String]) -> Result<RecordBatch, String> {
-    let mut c = Columns::default();
-    // The frame, as the `Image` feature stores one: {bytes, path}.
-    let mut bytes = BinaryBuilder::new();
-    let mut paths = StringBuilder::new();
-    for r in rows {
-        bytes.append_value(&r.png);
-        paths.append_value(&r.file);
-    }
-    let image_fields = Fields::from(vec![
-        Field::new("bytes", DataType::Binary, true),
-        Field::new("path", DataType::Utf8, true),
-    ]);
-    let image = StructArray::new(
-        image_fields,
-        vec![
-            Arc::new(bytes.finish()) as ArrayRef,
-            Arc::new(paths.finish()),
-        ],
-        None,
-    );
-    c.push(
-        "image",
-        Arc::new(image),
-        serde_json::json!({"_type": "Image"}),
-    );
-    c.text("run", rows.iter().map(|r| r.run.as_str()).collect());
-    for (k, p) in params.iter().enumerate() {
-        let vals: Vec<&str> = rows.iter().map(|r| r.params[k].as_str()).collect();
-        if vals.iter().all(|v| v.parse::<f64>().is_ok()) {
-            c.floats(p, vals.iter().map(|v| v.parse::<f64>().ok()).collect());
-        } else {
-            c.text(p, vals);
-        }
-    }
-    for (k, name) in INTS.iter().enumerate() {
-        let ints = Int64Array::from(rows.iter().map(|r| r.ints[k]).collect::<Vec<_>>());
-        c.push(name, Arc::new(ints), value("int64"));
-    }
-    for (k, name) in FLOATS.iter().enumerate() {
-        c.floats(name, rows.iter().map(|r| r.floats[k]).collect());
-    }
-    for (k, name) in TEXTS.iter().enumerate() {
-        c.text(name, rows.iter().map(|r| r.texts[k].as_str()).collect());
-    }
-    for (k, name) in MARKERS.iter().enumerate() {
-        let mut list = ListBuilder::new(Float32Builder::new());
-        for r in rows {
-            list.values().append_slice(&r.markers[k]);
-            list.append(true);
-        }
-        let feature = serde_json::json!({"feature": value("float32"), "_type": "Sequence"});
-        c.push(name, Arc::new(list.finish()), feature);
-    }
-    let meta = serde_json::json!({"info": {"features": c.features}}).to_string();
-    let schema =
-        Schema::new(c.fields).with_metadata(HashMap::from([("huggingface".to_string(), meta)]));
-    RecordBatch::try_new(Arc::new(schema), c.arrays).map_err(|e| e.to_string())
-}
-
-/// The dataset card: what, how it was made, the columns and their units, and the licence of
-/// the generator's assumptions.
-fn card_text(frames: usize, runs: usize, params: &[String]) -> String {
-    let params_text = if params.is_empty() {
-        "none (a run or a folder of runs)".to_string()
-    } else {
-        params
-            .iter()
-            .map(|p| format!("`{p}`"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    format!(
-        "---\nconfigs:\n- config_name: default\n  data_files:\n  - split: train\n    path: data/train-*.parquet\ntask_categories:\n- image-to-image\n- tabular-regression\ntags:\n- tactile\n- gelsight\n- simulation\n---\n\n\
-# gelrig tactile dataset\n\n\
-{frames} frames of {runs} runs written by `gelrig export --format dataset`: each row a \
-GelSight frame (PNG) and what the run recorded and the simulated bench knew at that frame.\n\n\
-Load it with `datasets.load_dataset(\"parquet\", data_files=\"data/*.parquet\")` or from this \
-folder (`load_dataset(\"path/to/folder\")`); pandas and pyarrow read the shards too.\n\n\
-## How it was made\n\n\
-Dry runs of gelrig protocols on its simulated bench: a bonded viscoelastic gel layer pressed, \
-sheared and twisted by a rigid indenter (the contact mechanics checked against finite \
-elements: docs/benchmarks/pressing.md), its camera frames rendered with markers, shading and \
-sensor noise, a Nano17-like force sensor sampled through the exposure. The gel's values of \
-each protocol are assumed, not measured (the protocol file states them); the renderer is not \
-a calibrated photometric model of any real sensor.\n\n\
-Swept parameters (one column each; a quantity with one unit is a number column named with \
-the unit): {params_text}.\n\n\
-## Columns\n\n\
-| column | what | unit |\n|---|---|---|\n\
-| `image` | the frame (PNG; the `Image` feature) and its path in the run | — |\n\
-| `run` | the run directory's name | — |\n\
-| `frame`, `step`, `t_ns` | frame number, protocol step, time on the run's clock | —, —, ns |\n\
-| `fx_n` … `tz_nmm` | the force sensor during the exposure (tared) | N, N·mm |\n\
-| `axis`, `position`, `position_unit` | the step's axis and where it ended | the step's unit |\n\
-| `sim_depth_mm` | the simulator's indentation depth at the step's end | mm |\n\
-| `sim_contact_radius_mm` | the simulated contact's radius (equivalent, √(area/π)) | mm |\n\
-| `sim_fz_n`, `sim_fx_n`, `sim_tz_nmm` | the simulator's equilibrium wrench at the step's end | N, N·mm |\n\
-| `indenter` | the protocol's indenter, as JSON | — |\n\
-| `marker_x_px`, `marker_y_px` | every marker's true centre in this frame, in id order | px |\n\
-| `marker_dx_px`, `marker_dy_px` | its displacement from the run's first frame | px |\n\n\
-Pressure and shear-traction maps and a contact mask per frame are not in this version.\n\n\
-## Licence\n\n\
-The frames and labels are generated; gelrig is MIT OR Apache-2.0, and so is what it \
-generates. The assumptions behind them (gel values, indenters, the renderer) are the \
-protocols'.\n"
-    )
 }

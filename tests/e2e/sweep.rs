@@ -277,8 +277,9 @@ fn parquet_has_the_parameters_as_columns() {
     assert!(fz("(9.5, 1)") > 1.5 * fz("(6.0, 1)"), "{v}");
 }
 
-/// On a real single-node Slurm (`.ci/slurm up`): the array and its merge job, submitted as
-/// `--slurm` writes them, give the local run's data point for point.
+/// On a real single-node Slurm (`.ci/slurm up`): the array of four shards (the issue's) and
+/// its merge job, submitted as `--slurm` writes them, give the local run's data point for
+/// point.
 #[test]
 fn a_slurm_array_runs_the_sweep_as_a_local_run_does() {
     let up = Command::new("sinfo")
@@ -303,9 +304,9 @@ fn a_slurm_array_runs_the_sweep_as_a_local_run_does() {
         cluster.as_os_str(),
         "--slurm".as_ref(),
         "--shards".as_ref(),
-        "2".as_ref(),
+        "4".as_ref(),
     ]);
-    assert!(wrote.contains("Slurm array of 2 tasks"), "{wrote}");
+    assert!(wrote.contains("Slurm array of 4 tasks"), "{wrote}");
     let submit = Command::new("bash")
         .arg(cluster.join("slurm/submit.sh"))
         .env("GELRIG_BIN", gelrig())
@@ -350,7 +351,7 @@ fn a_slurm_array_runs_the_sweep_as_a_local_run_does() {
         .filter_map(|e| e.ok())
         .filter(|e| e.file_name().to_string_lossy().ends_with(".out"))
         .collect();
-    assert_eq!(logs.len(), 3, "two array tasks and the merge");
+    assert_eq!(logs.len(), 5, "four array tasks and the merge");
 }
 
 /// `gelrig export CAMPAIGN --format dataset`: Hugging Face `datasets` loads the folder as it

@@ -100,6 +100,8 @@ pub struct ContactFinder {
     counts: Vec<u32>,
     map: Vec<f32>,
     tmp: Vec<f32>,
+    /// Scratch of [`fill_nan`]: the blocks still missing, and a ring's new values.
+    holes: (Vec<usize>, Vec<(usize, f32)>),
     marks: Vec<u8>,
     stack: Vec<usize>,
     samples: Vec<(f64, f32, bool)>,
@@ -153,6 +155,7 @@ impl ContactFinder {
             counts: vec![0; n],
             map: vec![0.0; n],
             tmp: vec![0.0; n],
+            holes: (Vec::new(), Vec::new()),
             marks: vec![0; n],
             stack: Vec::new(),
             samples: Vec::new(),
@@ -171,7 +174,7 @@ impl ContactFinder {
             for (k, v) in channel.iter_mut().enumerate() {
                 *v = finder.block_change(k, c, exposure[c]);
             }
-            fill_nan(channel, &mut finder.tmp, bw, bh);
+            fill_nan(channel, &mut finder.holes, bw, bh);
         }
         finder.base = base;
         finder.measure_noise(reference_frame, reference, exposure);
@@ -257,9 +260,10 @@ impl ContactFinder {
                     (i % self.bw) as f64 - centre[0],
                     (i / self.bw) as f64 - centre[1],
                 );
-                x.hypot(y)
+                x * x + y * y
             })
             .fold(0.0, f64::max)
+            .sqrt()
             + 1.5;
         let rays = self.params.rays.max(8);
         let angle = |k: usize| std::f64::consts::TAU * k as f64 / rays as f64;
@@ -329,7 +333,7 @@ impl ContactFinder {
             let d = |c: usize| self.block_change(k, c, exposure[c]) - self.base[c][k];
             self.map[k] = (d(0) * d(0) + d(1) * d(1) + d(2) * d(2)).sqrt() / self.noisiness[k];
         }
-        fill_nan(&mut self.map, &mut self.tmp, self.bw, self.bh);
+        fill_nan(&mut self.map, &mut self.holes, self.bw, self.bh);
         smooth_121(&mut self.map, &mut self.tmp, self.bw, self.bh);
         self.floor = self.min_peak;
     }
@@ -356,25 +360,11 @@ impl ContactFinder {
                 return [0.0; 3];
             };
             let row = (y / b) * bw;
-            for (bx, (dblock, pblock)) in drow
-                .chunks_exact(b)
-                .zip(prow.chunks_exact(3 * b))
-                .enumerate()
-            {
-                let (mut acc, mut n) = ([0u32; 3], 0u32);
-                for (&d, px) in dblock.iter().zip(pblock.chunks_exact(3)) {
-                    let keep = u32::from(d <= mark);
-                    acc[0] += px[0] as u32 * keep;
-                    acc[1] += px[1] as u32 * keep;
-                    acc[2] += px[2] as u32 * keep;
-                    n += keep;
-                }
-                let s = &mut self.sums[row + bx];
-                s[0] += acc[0];
-                s[1] += acc[1];
-                s[2] += acc[2];
-                self.counts[row + bx] += n;
-            }
+            let (sums, counts) = (
+                &mut self.sums[row..row + bw],
+                &mut self.counts[row..row + bw],
+            );
+            super::pixels::add_row_blocks(drow, prow, b, mark, sums, counts);
         }
         let mut exposure = [0.0f32; 3];
         for (c, e) in exposure.iter_mut().enumerate() {
@@ -448,7 +438,7 @@ impl ContactFinder {
                 n => (s / (3 * (n - 1)) as f32).sqrt(),
             })
             .collect();
-        fill_nan(&mut sigma, &mut self.tmp, bw, bh);
+        fill_nan(&mut sigma, &mut self.holes, bw, bh);
         self.tmp.copy_from_slice(&sigma);
         let mid = self.tmp.len() / 2;
         let (_, median, _) = self.tmp.select_nth_unstable_by(mid, f32::total_cmp);
@@ -536,13 +526,15 @@ impl ContactFinder {
                 marked += 1;
             }
         }
+        let n = bw * bh;
         while let Some(k) = self.stack.pop() {
-            let (i, j) = (k % bw, k / bw);
+            // The first and last rows are told apart by the index alone: one remainder a block.
+            let i = k % bw;
             let near = [
                 (i > 0).then(|| k - 1),
                 (i + 1 < bw).then(|| k + 1),
-                (j > 0).then(|| k - bw),
-                (j + 1 < bh).then(|| k + bw),
+                (k >= bw).then(|| k - bw),
+                (k + bw < n).then(|| k + bw),
             ];
             for q in near.into_iter().flatten() {
                 if take(self.map[q], self.marks[q]) {
@@ -641,7 +633,8 @@ impl ContactFinder {
 
     /// Bilinear sample of the map at block coordinates (inside the grid).
     fn sample(&self, x: f64, y: f64) -> f32 {
-        let (i, j) = (x.floor() as usize, y.floor() as usize);
+        // x, y ≥ 0: truncation is the floor (and no library call on the x86-64 baseline).
+        let (i, j) = (x as usize, y as usize);
         let (i1, j1) = ((i + 1).min(self.bw - 1), (j + 1).min(self.bh - 1));
         let (fx, fy) = ((x - i as f64) as f32, (y - j as f64) as f32);
         let m = |i: usize, j: usize| self.map[j * self.bw + i];
@@ -653,39 +646,45 @@ impl ContactFinder {
 
 /// Blocks wholly under markers (NaN) take the mean of their measured neighbours, ring by
 /// ring; a map with nothing measured becomes zero.
-fn fill_nan(map: &mut Vec<f32>, tmp: &mut Vec<f32>, bw: usize, bh: usize) {
-    tmp.resize(map.len(), 0.0);
+///
+/// Only the blocks still missing are visited (about a tenth of the map on a marker gel),
+/// each ring reading the map as the ring before left it.
+fn fill_nan(map: &mut [f32], scratch: &mut (Vec<usize>, Vec<(usize, f32)>), bw: usize, bh: usize) {
+    let (missing, filled) = scratch;
+    missing.clear();
+    missing.extend((0..map.len()).filter(|&k| map[k].is_nan()));
     for _ in 0..bw.max(bh) {
-        let mut missing = false;
-        tmp.copy_from_slice(map);
-        for j in 0..bh {
-            for i in 0..bw {
-                if !map[j * bw + i].is_nan() {
-                    continue;
-                }
-                let (mut s, mut n) = (0.0, 0.0);
-                for y in j.saturating_sub(1)..(j + 2).min(bh) {
-                    for x in i.saturating_sub(1)..(i + 2).min(bw) {
-                        let v = map[y * bw + x];
-                        if !v.is_nan() {
-                            s += v;
-                            n += 1.0;
-                        }
-                    }
-                }
-                if n > 0.0 {
-                    tmp[j * bw + i] = s / n;
-                } else {
-                    missing = true;
-                }
-            }
-        }
-        std::mem::swap(map, tmp);
-        if !missing {
+        if missing.is_empty() {
             return;
         }
+        filled.clear();
+        missing.retain(|&k| {
+            let (i, j) = (k % bw, k / bw);
+            let (mut s, mut n) = (0.0, 0.0);
+            for y in j.saturating_sub(1)..(j + 2).min(bh) {
+                for x in i.saturating_sub(1)..(i + 2).min(bw) {
+                    let v = map[y * bw + x];
+                    if !v.is_nan() {
+                        s += v;
+                        n += 1.0;
+                    }
+                }
+            }
+            if n > 0.0 {
+                filled.push((k, s / n));
+            }
+            n == 0.0
+        });
+        if filled.is_empty() {
+            break;
+        }
+        for &(k, v) in filled.iter() {
+            map[k] = v;
+        }
     }
-    map.iter_mut().filter(|v| v.is_nan()).for_each(|v| *v = 0.0);
+    for &k in missing.iter() {
+        map[k] = 0.0;
+    }
 }
 
 /// Separable [1 2 1]/4 smoothing, edges replicated.

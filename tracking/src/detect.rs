@@ -1,8 +1,9 @@
 //! Marker detection: darkness, low-pass, hysteresis threshold, run-based components.
 //!
 //! The per-pixel passes dominate the cost (the connected components touch only the ~10 %
-//! of pixels that are marker), so they work on bytes with integer arithmetic the compiler
-//! vectorises, and reuse their buffers: no allocation per frame once warm.
+//! of pixels that are marker), so they work on bytes with integer arithmetic, in AVX2 where
+//! the CPU has it ([`super::pixels`]), and reuse their buffers: no allocation per frame once
+//! warm.
 //!
 //! Components are found in one pass over runs of above-threshold pixels (Rosenfeld & Pfaltz
 //! 1966, run-based with union–find, 8-connected). Each run carries its darkness-weighted
@@ -133,8 +134,6 @@ pub struct Detector {
     low: u8,
     /// Background darkness per 32-px block of the last frame.
     block_bg: Vec<f32>,
-    /// Per channel and pixel, `I·inv >> 8` saturated (scratch of the darkness pass).
-    prod: Vec<u8>,
 }
 
 impl Detector {
@@ -145,9 +144,8 @@ impl Detector {
             width,
             height,
             dark: vec![0; n],
-            rows: vec![0; n],
+            rows: Vec::new(),
             smooth: vec![0; n],
-            prod: Vec::with_capacity(3 * n),
             runs: Vec::new(),
             parent: Vec::new(),
             acc_of_root: Vec::new(),
@@ -194,39 +192,18 @@ impl Detector {
         self.height
     }
 
-    /// Darkness `255·(1 − max_c I_c/B_c)`, clamped at 0, then a 3×3 binomial low-pass.
+    /// Darkness `255·(1 − max_c I_c/B_c)`, clamped at 0, then a 3×3 binomial low-pass
+    /// ([`super::pixels`]).
     pub(crate) fn darkness_into(&mut self, rgb: &[u8], inv_bg: &[u16]) {
-        let (w, h) = (self.width, self.height);
-        // Two passes that vectorise: every channel's `I·inv >> 8` as the high half of a
-        // 16-bit multiply (`(I·256)·inv >> 16`), saturated to a byte; then the maximum of
-        // each pixel's three bytes, which needs byte shuffles (SSSE3 and up), so both run
-        // under the best instruction set the CPU has (chosen at run time).
-        self.prod.resize(rgb.len().min(inv_bg.len()), 0);
-        pulp::Arch::new().dispatch(DarknessPass {
-            rgb,
-            inv_bg,
-            prod: &mut self.prod,
-            dark: &mut self.dark,
-        });
+        super::pixels::darkness(rgb, inv_bg, &mut self.dark);
         self.normalise_exposure();
-        // Horizontal [1 2 1], edges replicated.
-        for (src, dst) in self.dark.chunks_exact(w).zip(self.rows.chunks_exact_mut(w)) {
-            dst[0] = 3 * src[0] as u16 + src[1] as u16;
-            for x in 1..w - 1 {
-                dst[x] = src[x - 1] as u16 + 2 * src[x] as u16 + src[x + 1] as u16;
-            }
-            dst[w - 1] = src[w - 2] as u16 + 3 * src[w - 1] as u16;
-        }
-        // Vertical [1 2 1] and normalisation by 16.
-        for y in 0..h {
-            let up = &self.rows[y.saturating_sub(1) * w..][..w];
-            let mid = &self.rows[y * w..][..w];
-            let down = &self.rows[(y + 1).min(h - 1) * w..][..w];
-            let out = &mut self.smooth[y * w..][..w];
-            for x in 0..w {
-                out[x] = ((up[x] + 2 * mid[x] + down[x] + 8) >> 4) as u8;
-            }
-        }
+        super::pixels::binomial_3x3(
+            &self.dark,
+            self.width,
+            self.height,
+            &mut self.rows,
+            &mut self.smooth,
+        );
     }
 
     /// Divides out a change of exposure or illumination since the reference.
@@ -324,62 +301,46 @@ impl Detector {
         self.parent.clear();
         self.blobs.clear();
         let low = t.low;
-        let mut prev_start = 0usize;
-        for y in 0..h {
-            let row = &self.smooth[y * w..][..w];
-            let row_start = self.runs.len();
-            let mut x = 0usize;
-            while x < w {
-                // Most of a frame is background: skip it 16 pixels at a time (the maximum of
-                // 16 bytes is one vector instruction).
-                while x + 16 <= w && row[x..x + 16].iter().fold(0u8, |m, &v| m.max(v)) <= low {
-                    x += 16;
-                }
-                if x >= w {
-                    break;
-                }
-                if row[x] <= low {
-                    x += 1;
-                    continue;
-                }
-                let x0 = x;
-                let (mut sw, mut swx, mut swx2, mut peak) = (0u64, 0u64, 0u64, 0u8);
-                while x < w && row[x] > low {
-                    let v = row[x];
-                    let wgt = (v - low) as u64;
-                    sw += wgt;
-                    swx += wgt * x as u64;
-                    swx2 += wgt * (x * x) as u64;
-                    peak = peak.max(v);
-                    x += 1;
-                }
-                let id = self.runs.len() as u32;
-                self.runs.push(Run {
-                    y: y as u32,
-                    x0: x0 as u32,
-                    x1: x as u32,
-                    sw,
-                    swx,
-                    swx2,
-                    peak,
-                    root: id,
-                });
-                self.parent.push(id);
-            }
-            // Union with 8-connected runs of the previous row (two pointers).
-            let mut p = prev_start;
-            for r in row_start..self.runs.len() {
-                let (a0, a1) = (self.runs[r].x0, self.runs[r].x1);
-                while p < row_start && self.runs[p].x1 < a0 {
-                    p += 1;
-                }
-                let mut q = p;
-                while q < row_start && self.runs[q].x0 <= a1 {
-                    union(&mut self.parent, q as u32, r as u32);
-                    q += 1;
+        let (runs, parent) = (&mut self.runs, &mut self.parent);
+        super::pixels::runs_above(&self.smooth, w, h, low, &mut |r| {
+            let id = runs.len() as u32;
+            runs.push(Run {
+                y: r.y,
+                x0: r.x0,
+                x1: r.x1,
+                sw: r.sw,
+                swx: r.swx,
+                swx2: r.swx2,
+                peak: r.peak,
+                root: id,
+            });
+            parent.push(id);
+        });
+        // Union each run with the 8-connected runs of the row above (two pointers).
+        let (mut prev_start, mut row_start) = (0usize, 0usize);
+        while row_start < self.runs.len() {
+            let y = self.runs[row_start].y;
+            let row_end = row_start
+                + self.runs[row_start..]
+                    .iter()
+                    .take_while(|r| r.y == y)
+                    .count();
+            let above = prev_start < row_start && self.runs[prev_start].y + 1 == y;
+            if above {
+                let mut p = prev_start;
+                for r in row_start..row_end {
+                    let (a0, a1) = (self.runs[r].x0, self.runs[r].x1);
+                    while p < row_start && self.runs[p].x1 < a0 {
+                        p += 1;
+                    }
+                    let mut q = p;
+                    while q < row_start && self.runs[q].x0 <= a1 {
+                        union(&mut self.parent, q as u32, r as u32);
+                        q += 1;
+                    }
                 }
             }
-            prev_start = row_start;
+            (prev_start, row_start) = (row_start, row_end);
         }
         // Accumulate per root.
         self.acc_of_root.clear();
@@ -600,70 +561,5 @@ fn union(parent: &mut [u32], a: u32, b: u32) {
         // Keep the earlier run as the root, so roots are stable in raster order.
         let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
         parent[hi as usize] = lo;
-    }
-}
-
-/// The darkness of every pixel, `255 − min(255, max_c(I_c·inv_c) >> 8)`, in two passes
-/// compiled for the instruction set [`pulp::Arch`] finds (the loops are plain Rust; the
-/// compiler vectorises them there).
-struct DarknessPass<'a> {
-    rgb: &'a [u8],
-    inv_bg: &'a [u16],
-    prod: &'a mut [u8],
-    dark: &'a mut [u8],
-}
-
-impl pulp::WithSimd for DarknessPass<'_> {
-    type Output = ();
-
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        for ((o, &c), &i) in self.prod.iter_mut().zip(self.rgb).zip(self.inv_bg) {
-            let a = (c as u16) << 8;
-            let p = ((a as u32 * i as u32) >> 16) as u16;
-            *o = p.min(255) as u8;
-        }
-        let n = self.dark.len().min(self.prod.len() / 3);
-        let (dark, prod) = (&mut self.dark[..n], &self.prod[..3 * n]);
-        for (i, d) in dark.iter_mut().enumerate() {
-            *d = 255 - prod[3 * i].max(prod[3 * i + 1]).max(prod[3 * i + 2]);
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::DarknessPass;
-
-    /// The dispatched two-pass form equals the definition on every kind of input,
-    /// saturated products and an odd pixel count included.
-    #[test]
-    fn the_vectorised_darkness_is_the_definition() {
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
-        let n = 1001;
-        let mut rgb: Vec<u8> = (0..3 * n).map(|_| next() as u8).collect();
-        let mut inv: Vec<u16> = (0..3 * n).map(|_| next() as u16).collect();
-        rgb[..6].copy_from_slice(&[255, 255, 255, 0, 0, 0]);
-        inv[..6].copy_from_slice(&[65535, 65535, 65535, 65535, 0, 1]);
-        let (mut prod, mut dark) = (vec![0u8; 3 * n], vec![0u8; n]);
-        pulp::Arch::new().dispatch(DarknessPass {
-            rgb: &rgb,
-            inv_bg: &inv,
-            prod: &mut prod,
-            dark: &mut dark,
-        });
-        for (k, d) in dark.iter().enumerate() {
-            let m = (0..3)
-                .map(|c| rgb[3 * k + c] as u32 * inv[3 * k + c] as u32)
-                .max()
-                .unwrap_or(0);
-            assert_eq!(*d as u32, 255 - (m >> 8).min(255), "pixel {k}");
-        }
     }
 }

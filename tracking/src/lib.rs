@@ -34,6 +34,7 @@ mod frame_check;
 pub mod lattice;
 pub mod lk;
 mod outline;
+mod pixels;
 mod reference;
 mod tracker;
 

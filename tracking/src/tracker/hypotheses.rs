@@ -322,13 +322,23 @@ impl Tracker {
                 }
             });
         }
+        // Each bin's 3×3 neighbourhood sum, as a row pass then a column pass.
+        let mut across = vec![0u32; bins * bins];
+        for (src, dst) in hist.chunks_exact(bins).zip(across.chunks_exact_mut(bins)) {
+            for x in 0..bins {
+                dst[x] = src[x.saturating_sub(1)..=(x + 1).min(bins - 1)]
+                    .iter()
+                    .sum();
+            }
+        }
         let mut smooth = vec![0u32; bins * bins];
         for y in 0..bins {
-            for x in 0..bins {
-                for yy in y.saturating_sub(1)..=(y + 1).min(bins - 1) {
-                    for xx in x.saturating_sub(1)..=(x + 1).min(bins - 1) {
-                        smooth[y * bins + x] += hist[yy * bins + xx];
-                    }
+            for yy in y.saturating_sub(1)..=(y + 1).min(bins - 1) {
+                for (o, a) in smooth[y * bins..][..bins]
+                    .iter_mut()
+                    .zip(&across[yy * bins..][..bins])
+                {
+                    *o += a;
                 }
             }
         }
@@ -353,8 +363,10 @@ impl Tracker {
                 (at.1 as f64 - half as f64) * bin,
             ];
             let (mut sx, mut sy, mut k) = (0.0, 0.0, 0.0);
+            let near = (1.5 * bin) * (1.5 * bin);
             for c in &cands {
-                if dist(*c, centre) < 1.5 * bin {
+                let (dx, dy) = (c[0] - centre[0], c[1] - centre[1]);
+                if dx * dx + dy * dy < near {
                     sx += c[0];
                     sy += c[1];
                     k += 1.0;

@@ -78,8 +78,11 @@ impl Buckets {
         self.xy.clear();
         self.xy.extend(points);
         let cell_of = |p: [f64; 2], cols: usize, rows: usize, size: f64| {
-            let cx = ((p[0] / size).floor().max(0.0) as usize).min(cols - 1);
-            let cy = ((p[1] / size).floor().max(0.0) as usize).min(rows - 1);
+            // `as usize` truncates toward zero and saturates below at 0: the floor of a
+            // non-negative value, 0 for a negative one (the x86-64 baseline has no floor
+            // instruction, and its library call is on every query).
+            let cx = ((p[0] / size).max(0.0) as usize).min(cols - 1);
+            let cy = ((p[1] / size).max(0.0) as usize).min(rows - 1);
             cy * cols + cx
         };
         for p in &self.xy {
@@ -103,9 +106,9 @@ impl Buckets {
         if self.cols == 0 || !p[0].is_finite() || !p[1].is_finite() {
             return;
         }
-        let lo = |v: f64| ((v - radius) / self.cell).floor().max(0.0) as usize;
-        let hi =
-            |v: f64, n: usize| (((v + radius) / self.cell).floor().max(0.0) as usize).min(n - 1);
+        // Truncation is the floor here: negative values saturate to 0 (see `build_points`).
+        let lo = |v: f64| ((v - radius) / self.cell).max(0.0) as usize;
+        let hi = |v: f64, n: usize| (((v + radius) / self.cell).max(0.0) as usize).min(n - 1);
         let (x0, x1) = (lo(p[0]).min(self.cols - 1), hi(p[0], self.cols));
         let (y0, y1) = (lo(p[1]).min(self.rows - 1), hi(p[1], self.rows));
         for cy in y0..=y1 {

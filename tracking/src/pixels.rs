@@ -316,12 +316,10 @@ pub(crate) fn add_row_blocks(
         .min(counts.len())
         .min(dark.len() / block.max(1))
         .min(rgb.len() / (3 * block.max(1)));
-    let mut done = 0;
+    // The groups of four blocks done in SSSE3 (none without x86-64-v3), then the rest.
     #[cfg(target_arch = "x86_64")]
-    if block == 4
-        && let Some(simd) = pulp::x86::V3::try_new()
-    {
-        done = simd.vectorize(|| {
+    let done = match (block, pulp::x86::V3::try_new()) {
+        (4, Some(simd)) => simd.vectorize(|| {
             blocks4_v3::run(
                 simd,
                 dark,
@@ -330,8 +328,11 @@ pub(crate) fn add_row_blocks(
                 &mut sums[..blocks],
                 &mut counts[..blocks],
             )
-        });
-    }
+        }),
+        _ => 0,
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let done = 0;
     for k in done..blocks {
         let (d, p) = (
             &dark[k * block..][..block],

@@ -6,7 +6,9 @@ use std::process::ExitCode;
 /// mimalloc rather than the system allocator: a dry run allocates and frees frame-sized
 /// buffers (a 640×480 frame's 3.7 MB of light levels, the field's transforms) at every frame,
 /// and glibc returned them to the kernel and faulted them back each time: 11.8–22 s of
-/// system time in a 40–62 s 10-trial lifting-can run (docs/benchmarks/grasp.md).
+/// system time in a 40–62 s 10-trial lifting-can run (docs/benchmarks/grasp.md). Built
+/// without transparent huge pages (`no_thp`): each 2 MB page mimalloc touched first was
+/// cleared whole, a sixth of a short dry run's time (docs/benchmarks/dry-runs.md).
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

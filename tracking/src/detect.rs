@@ -214,38 +214,34 @@ impl Detector {
     /// darkness on an eighth of the pixels (every fourth row, every other column) is the
     /// background's (even defocused markers leave a tenth of any block as background). When the median block's is above 2 %,
     /// every pixel's brightness ratio is divided by its background's, bilinearly between
-    /// block centres. A frame lit as the reference costs one sampled histogram per block
-    /// and no rescaling.
+    /// block centres. A frame lit as the reference costs one tenth percentile of sampled
+    /// pixels per block ([`tenth_level`]) and no rescaling.
     fn normalise_exposure(&mut self) {
-        const BLOCK: usize = 32;
+        const BLOCK: usize = EXPOSURE_BLOCK;
         let (w, h) = (self.width, self.height);
         let (bx, by) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
         self.block_bg.clear();
-        let mut hist = [0u32; 256];
         for j in 0..by {
             for i in 0..bx {
-                // Four interleaved histograms, summed: consecutive samples of a flat
-                // background share a bin, and one histogram serialises on that bin's counter.
-                let mut lanes = [[0u32; 256]; 4];
-                let mut n = 0u32;
+                // The samples in one array (at most 8 rows of 16), padded with 255, which
+                // the search below never counts (it asks about levels up to 254 only).
+                let mut samples = [255u8; SAMPLES];
+                let mut n = 0usize;
                 for y in (j * BLOCK..((j + 1) * BLOCK).min(h)).step_by(4) {
-                    let row = &self.dark[y * w..][..w];
-                    for (k, x) in (i * BLOCK..((i + 1) * BLOCK).min(w)).step_by(2).enumerate() {
-                        lanes[k & 3][row[x] as usize] += 1;
-                        n += 1;
+                    let row = &self.dark[y * w..][i * BLOCK..((i + 1) * BLOCK).min(w)];
+                    if let Ok(whole) = <&[u8; BLOCK]>::try_from(row) {
+                        // A whole block's row: every other byte, which the compiler packs.
+                        let even: [u8; BLOCK / 2] = std::array::from_fn(|k| whole[2 * k]);
+                        samples[n..n + BLOCK / 2].copy_from_slice(&even);
+                        n += BLOCK / 2;
+                    } else {
+                        for &v in row.iter().step_by(2) {
+                            samples[n] = v;
+                            n += 1;
+                        }
                     }
                 }
-                for (v, bin) in hist.iter_mut().enumerate() {
-                    *bin = lanes[0][v] + lanes[1][v] + lanes[2][v] + lanes[3][v];
-                }
-                let (mut acc, mut level) = (0u32, 0usize);
-                while level < 255 {
-                    acc += hist[level];
-                    if 10 * acc >= n {
-                        break;
-                    }
-                    level += 1;
-                }
+                let level = tenth_level(&samples, n);
                 // Keep a tenth of the ratio range at least: a block that is all marker or
                 // all shadow is not a background.
                 self.block_bg.push(level.min(230) as f32);
@@ -546,6 +542,36 @@ impl Detector {
     }
 }
 
+/// Side of [`Detector::normalise_exposure`]'s blocks, px.
+const EXPOSURE_BLOCK: usize = 32;
+
+/// Samples of one such block: every fourth row and every other column.
+const SAMPLES: usize = EXPOSURE_BLOCK.div_ceil(4) * EXPOSURE_BLOCK.div_ceil(2);
+
+/// The tenth percentile of `samples[..n]`: the lowest level at or below which a tenth of them
+/// lie (10·count ≥ n), found by bisection on the count, each count a byte sum over the whole
+/// array the compiler vectorises. The entries from `n` on must be 255, which is never
+/// counted (the bisection asks about levels up to 254 only). A histogram per block cost
+/// more than the rest of the pass: four of them cleared and summed, 256 bins each.
+fn tenth_level(samples: &[u8; SAMPLES], n: usize) -> u8 {
+    let need = n.div_ceil(10);
+    let (mut lo, mut hi) = (0u8, 255u8);
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        // At most 128 samples: the count fits a byte.
+        const _: () = assert!(SAMPLES <= 255);
+        let below = samples
+            .iter()
+            .fold(0u8, |c, &v| c.wrapping_add(u8::from(v <= mid)));
+        if usize::from(below) >= need {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    lo
+}
+
 fn find(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         let p = parent[i as usize];
@@ -561,5 +587,56 @@ fn union(parent: &mut [u32], a: u32, b: u32) {
         // Keep the earlier run as the root, so roots are stable in raster order.
         let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
         parent[hi as usize] = lo;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The definition: the lowest level whose running count reaches a tenth (a histogram).
+    fn by_histogram(samples: &[u8]) -> u8 {
+        let mut hist = [0u32; 256];
+        samples.iter().for_each(|&v| hist[v as usize] += 1);
+        let (mut acc, mut level) = (0u32, 0usize);
+        while level < 255 {
+            acc += hist[level];
+            if 10 * acc >= samples.len() as u32 {
+                break;
+            }
+            level += 1;
+        }
+        level as u8
+    }
+
+    #[test]
+    fn the_tenth_level_is_the_histograms() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for n in 0..=SAMPLES {
+            // Flat, narrow, wide, saturated and two-level (marker and background) blocks.
+            for spread in [0u64, 3, 40, 256] {
+                for base in [0u8, 7, 200, 255] {
+                    let mut samples = [255u8; SAMPLES];
+                    for v in &mut samples[..n] {
+                        let r = if spread == 0 { 0 } else { next() % spread };
+                        *v = base.saturating_add(r as u8);
+                    }
+                    if base == 7 {
+                        samples[..n / 3].fill(230);
+                    }
+                    assert_eq!(
+                        tenth_level(&samples, n),
+                        by_histogram(&samples[..n]),
+                        "n {n}, spread {spread}, base {base}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -71,6 +71,7 @@ impl Recorder {
             frame_count,
             reserve,
             broken: None,
+            batch: false,
             _lock: lock,
         };
         rec.write_manifest()?;

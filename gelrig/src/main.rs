@@ -8,7 +8,8 @@ use std::process::ExitCode;
 /// and glibc returned them to the kernel and faulted them back each time: 11.8–22 s of
 /// system time in a 40–62 s 10-trial lifting-can run (docs/benchmarks/grasp.md). Built
 /// without transparent huge pages (`no_thp`): each 2 MB page mimalloc touched first was
-/// cleared whole, a sixth of a short dry run's time (docs/benchmarks/dry-runs.md).
+/// cleared whole, 15 % of a short dry run's profile samples and 6 % of its wall time
+/// (`box-normal-flat`; docs/benchmarks/dry-runs.md).
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

@@ -305,11 +305,6 @@ fn open_record(req: &Launch<'_>, clock: &Clock) -> Result<Recorder, RecordError>
         None if req.record_mcap => rec.record_mcap(&loaded.rig_text)?,
         _ => {}
     }
-    // A dry run in virtual time can be made again, and its rows come faster than a system
-    // call each; a run on a real or scaled clock writes each row through as it comes.
-    if req.clock == ClockMode::Virtual {
-        rec.batch_rows();
-    }
     Ok(rec)
 }
 

@@ -128,18 +128,12 @@ impl Write for Staging {
     }
 }
 
-/// Rows held back by a batching [`CsvFile`] before they are appended together.
-const BATCH_BYTES: usize = 64 * 1024;
-
 /// A CSV file of rows of one type, each written whole.
 pub(super) struct CsvFile {
     out: Appender,
     /// One encoder for the file's life (it writes the header before the first row).
     encoder: csv::Writer<Staging>,
     staged: Staging,
-    /// Whole rows not yet appended (a batching file's; see [`Self::batch`]).
-    pending: Vec<u8>,
-    batch: bool,
 }
 
 impl CsvFile {
@@ -155,16 +149,7 @@ impl CsvFile {
             out,
             encoder,
             staged,
-            pending: Vec::new(),
-            batch: false,
         })
-    }
-
-    /// From now on, rows are appended [`BATCH_BYTES`] at a time (whole rows only, so a
-    /// reader still never sees a torn one) and at [`Self::flush`] and [`Self::sync`],
-    /// rather than one system call per row.
-    pub(super) fn batch(&mut self) {
-        self.batch = true;
     }
 
     /// A file whose header, from `example`'s field names, is on disk at once (so even a
@@ -206,42 +191,15 @@ impl CsvFile {
         Ok(std::mem::take(&mut *records::lock(&self.staged.0)))
     }
 
-    /// Writes one row through to the OS, whole or not at all (a batching file: into its
-    /// batch, appended once the batch is full).
+    /// Writes one row through to the OS, whole or not at all.
     pub(super) fn row<T: serde::Serialize>(&mut self, row: &T) -> Result<(), RecordError> {
         let bytes = self.encode(row)?;
-        if !self.batch {
-            return self.out.append(&bytes);
-        }
-        self.pending.extend_from_slice(&bytes);
-        if self.pending.len() >= BATCH_BYTES {
-            self.flush()?;
-        }
-        Ok(())
-    }
-
-    /// Hands every row written so far to the OS, whole.
-    pub(super) fn flush(&mut self) -> Result<(), RecordError> {
-        if self.pending.is_empty() {
-            return Ok(());
-        }
-        self.out.append(&self.pending)?;
-        self.pending.clear();
-        Ok(())
+        self.out.append(&bytes)
     }
 
     /// Makes the rows durable.
     pub(super) fn sync(&mut self) -> Result<(), RecordError> {
-        self.flush()?;
         self.out.sync()
-    }
-}
-
-impl Drop for CsvFile {
-    /// Rows still batched are handed over on the way out (a run that ends by an error or a
-    /// panic); a failure here has no one left to tell, and the run's end already says why.
-    fn drop(&mut self) {
-        let _ = self.flush();
     }
 }
 
@@ -394,46 +352,6 @@ mod tests {
         assert_eq!(
             fs::read_to_string(&steps).expect("read"),
             "t_ns,fz_n\n1,0.5\n"
-        );
-    }
-
-    /// A batching file hands rows over whole, a batch at a time and at every flush, and
-    /// ends as the file written row by row does (dropped with rows still batched, too).
-    #[test]
-    fn a_batching_file_appends_whole_rows_and_ends_as_the_row_by_row_one() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let (through, batched) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
-        let example = Row { t_ns: 0, fz_n: 0.0 };
-        let mut a = CsvFile::with_header_of(through.clone(), &example).expect("create");
-        let mut b = CsvFile::with_header_of(batched.clone(), &example).expect("create");
-        b.batch();
-        let row = |k: u64| Row {
-            t_ns: k * 1_000_000,
-            fz_n: k as f64 / 7.0,
-        };
-        for k in 0..10 {
-            a.row(&row(k)).expect("row");
-            b.row(&row(k)).expect("row");
-        }
-        // Ten rows wait in the batch; the flush hands them over.
-        assert_eq!(fs::read_to_string(&batched).expect("read"), "t_ns,fz_n\n");
-        b.flush().expect("flush");
-        assert_eq!(
-            fs::read(&batched).expect("read"),
-            fs::read(&through).expect("read")
-        );
-        // Past a batch's size the rows are on file, whole, without a flush.
-        for k in 10..5000 {
-            a.row(&row(k)).expect("row");
-            b.row(&row(k)).expect("row");
-        }
-        let partial = fs::read_to_string(&batched).expect("read");
-        assert!(partial.len() > BATCH_BYTES && partial.ends_with('\n'));
-        assert!(partial.len() < fs::read(&through).expect("read").len());
-        drop(b);
-        assert_eq!(
-            fs::read(&batched).expect("read"),
-            fs::read(&through).expect("read")
         );
     }
 }

@@ -253,7 +253,7 @@ fn write(
                 x_px: round6(*x),
                 y_px: round6(*y),
             };
-            append_to(markers, path.clone(), &row, false)?;
+            append_to(markers, path.clone(), &row)?;
         }
     }
     Ok(())
@@ -308,5 +308,5 @@ fn write_maps(
         contact_area_mm2: round6(contact),
         cell_mm: t.cell_mm,
     };
-    append_to(sim_frames, dir.join(crate::names::SIM_FRAMES), &row, false)
+    append_to(sim_frames, dir.join(crate::names::SIM_FRAMES), &row)
 }

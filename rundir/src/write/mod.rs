@@ -87,8 +87,6 @@ pub struct Recorder {
     reserve: Reserve,
     /// The first write failure; data is no longer written once set.
     broken: Option<String>,
-    /// Data rows are batched ([`Self::batch_rows`]).
-    batch: bool,
     _lock: File,
 }
 
@@ -98,14 +96,9 @@ fn append_to<T: serde::Serialize>(
     slot: &mut Option<CsvFile>,
     path: PathBuf,
     row: &T,
-    batch: bool,
 ) -> Result<(), RecordError> {
     if slot.is_none() {
-        let mut file = CsvFile::create(path)?;
-        if batch {
-            file.batch();
-        }
-        *slot = Some(file);
+        *slot = Some(CsvFile::create(path)?);
     }
     match slot {
         Some(w) => w.row(row),
@@ -196,7 +189,6 @@ impl Recorder {
             frame_count: 0,
             reserve,
             broken: None,
-            batch: false,
             _lock: lock,
         };
         rec.write_manifest()?;
@@ -267,43 +259,14 @@ impl Recorder {
         }
     }
 
-    /// Changes the manifest and rewrites `run.yaml` atomically, batched rows handed over
-    /// first (a status never runs ahead of the data). Tried even after a failure: the final
-    /// status matters most.
+    /// Changes the manifest and rewrites `run.yaml` atomically. Tried even after a failure:
+    /// the final status matters most.
     pub fn update_manifest(&mut self, f: impl FnOnce(&mut Manifest)) -> Result<(), RecordError> {
         f(&mut self.manifest);
-        let rows = self.data(Self::flush_rows).map(|_| ());
         match self.write_manifest() {
-            Ok(()) => rows,
+            Ok(()) => Ok(()),
             Err(e) => Err(self.fail(e)),
         }
-    }
-
-    /// Appends the data rows recorded in virtual time (a dry run) in batches instead of
-    /// one system call per row: the process can still be killed at any moment without a
-    /// torn row, and every row of a completed step is on file before its step row, but
-    /// the rows of the step under way when it is killed may be missing (the resumed run
-    /// records that step again). On a dry run of `box-normal-flat` the per-row calls
-    /// were about a tenth of the run.
-    pub fn batch_rows(&mut self) {
-        self.batch = true;
-        for w in [&mut self.force, &mut self.axes, &mut self.tactile]
-            .into_iter()
-            .flatten()
-        {
-            w.batch();
-        }
-    }
-
-    /// Hands every batched data row to the OS.
-    fn flush_rows(&mut self) -> Result<(), RecordError> {
-        for w in [&mut self.force, &mut self.axes, &mut self.tactile]
-            .into_iter()
-            .flatten()
-        {
-            w.flush()?;
-        }
-        Ok(())
     }
 
     fn write_manifest(&mut self) -> Result<(), RecordError> {
@@ -370,7 +333,7 @@ impl Recorder {
             ];
             m.with(|w, _| w.wrench(row.t_ns, v));
         }
-        self.data(|r| append_to(&mut r.force, r.dir.join(crate::names::FORCE), &row, r.batch))
+        self.data(|r| append_to(&mut r.force, r.dir.join(crate::names::FORCE), &row))
             .map(|_| ())
     }
 
@@ -396,7 +359,7 @@ impl Recorder {
                 w.joint(t_ns, axis, crate::ros2::si(row.position, rot))
             });
         }
-        self.data(|r| append_to(&mut r.axes, r.dir.join(crate::names::AXES), &row, r.batch))
+        self.data(|r| append_to(&mut r.axes, r.dir.join(crate::names::AXES), &row))
             .map(|_| ())
     }
 
@@ -453,12 +416,7 @@ impl Recorder {
             object_slips: t.object_slips,
         };
         self.data(|r| {
-            append_to(
-                &mut r.sim_steps,
-                r.dir.join(crate::names::SIM_STEPS),
-                &row,
-                false,
-            )?;
+            append_to(&mut r.sim_steps, r.dir.join(crate::names::SIM_STEPS), &row)?;
             r.sim_steps.as_mut().map_or(Ok(()), CsvFile::sync)
         })
         .map(|_| ())
@@ -467,23 +425,14 @@ impl Recorder {
     /// Appends a frame's live tactile state to `tactile.csv`.
     pub fn tactile(&mut self, row: &TactileRow) -> Result<(), RecordError> {
         self.json_message(crate::ros2::Topic::Tactile, row.t_ns, row);
-        self.data(|r| {
-            append_to(
-                &mut r.tactile,
-                r.dir.join(crate::names::TACTILE),
-                row,
-                r.batch,
-            )
-        })
-        .map(|_| ())
+        self.data(|r| append_to(&mut r.tactile, r.dir.join(crate::names::TACTILE), row))
+            .map(|_| ())
     }
 
     /// Appends a step row and makes it, and everything recorded before it, durable.
     pub fn step(&mut self, row: &StepRow) -> Result<(), RecordError> {
         self.json_message(crate::ros2::Topic::Steps, row.t_end_ns, row);
         self.data(|r| {
-            // The step's rows are on file before the row that says it is complete.
-            r.flush_rows()?;
             r.steps.row(row)?;
             r.steps.sync()?;
             for w in [&mut r.force, &mut r.axes, &mut r.tactile]
@@ -532,10 +481,8 @@ impl Recorder {
         }
     }
 
-    /// Ends the recording: batched rows handed over, the reserve given back.
+    /// Ends the recording: the reserve is given back.
     pub fn close(&mut self) {
-        // A failure is kept by `fail`: `broken` says so.
-        let _ = self.data(Self::flush_rows);
         self.reserve.release();
     }
 }

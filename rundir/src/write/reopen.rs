@@ -71,7 +71,6 @@ impl Recorder {
             frame_count,
             reserve,
             broken: None,
-            batch: false,
             _lock: lock,
         };
         rec.write_manifest()?;

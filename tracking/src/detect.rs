@@ -214,45 +214,34 @@ impl Detector {
     /// darkness on an eighth of the pixels (every fourth row, every other column) is the
     /// background's (even defocused markers leave a tenth of any block as background). When the median block's is above 2 %,
     /// every pixel's brightness ratio is divided by its background's, bilinearly between
-    /// block centres. A frame lit as the reference costs one tenth percentile of sampled
-    /// pixels per block ([`tenth_level`]) and no rescaling.
+    /// block centres. A frame lit as the reference costs one count of sampled pixels per
+    /// block ([`Self::block_at_most`]) and no rescaling; a changed one the tenth percentiles
+    /// ([`tenth_level`]) and the rescaling.
     fn normalise_exposure(&mut self) {
         const BLOCK: usize = EXPOSURE_BLOCK;
         let (w, h) = (self.width, self.height);
         let (bx, by) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
+        // Rescale only when the frame as a whole changed (the median block is 2 % darker):
+        // a few blocks full of defocused ink are not an exposure change. Whether a block's
+        // level is above 2 % is one count (`block_at_most`), not the level's eight: a frame lit as
+        // the reference needs no level at all (the median, the middle of the sorted levels,
+        // is at most 5 exactly when more than half of the blocks are).
+        let blocks = bx * by;
+        let low = (0..by)
+            .flat_map(|j| (0..bx).map(move |i| (i, j)))
+            .filter(|&(i, j)| self.block_at_most(i, j, EXPOSURE_UNCHANGED))
+            .count();
+        if blocks == 0 || low > blocks / 2 {
+            return;
+        }
         self.block_bg.clear();
         for j in 0..by {
             for i in 0..bx {
-                // The samples in one array (at most 8 rows of 16), padded with 255, which
-                // the search below never counts (it asks about levels up to 254 only).
-                let mut samples = [255u8; SAMPLES];
-                let mut n = 0usize;
-                for y in (j * BLOCK..((j + 1) * BLOCK).min(h)).step_by(4) {
-                    let row = &self.dark[y * w..][i * BLOCK..((i + 1) * BLOCK).min(w)];
-                    if let Ok(whole) = <&[u8; BLOCK]>::try_from(row) {
-                        // A whole block's row: every other byte, which the compiler packs.
-                        let even: [u8; BLOCK / 2] = std::array::from_fn(|k| whole[2 * k]);
-                        samples[n..n + BLOCK / 2].copy_from_slice(&even);
-                        n += BLOCK / 2;
-                    } else {
-                        for &v in row.iter().step_by(2) {
-                            samples[n] = v;
-                            n += 1;
-                        }
-                    }
-                }
-                let level = tenth_level(&samples, n);
+                let (samples, n) = self.block_samples(i, j);
                 // Keep a tenth of the ratio range at least: a block that is all marker or
                 // all shadow is not a background.
-                self.block_bg.push(level.min(230) as f32);
+                self.block_bg.push(tenth_level(&samples, n).min(230) as f32);
             }
-        }
-        // Rescale only when the frame as a whole changed (the median block is 2 % darker):
-        // a few blocks full of defocused ink are not an exposure change.
-        let mut levels = self.block_bg.clone();
-        levels.sort_by(f32::total_cmp);
-        if levels.get(levels.len() / 2).is_none_or(|&m| m <= 5.0) {
-            return;
         }
         let centre = |k: usize, n: usize, len: usize| {
             ((k * BLOCK) as f32 + (((k + 1) * BLOCK).min(len) - k * BLOCK) as f32 / 2.0 - 0.5)
@@ -289,6 +278,55 @@ impl Detector {
         }
     }
 
+    /// Whether block `(i, j)`'s tenth-percentile darkness is at most `level`: one step of
+    /// [`tenth_level`]'s bisection on [`Self::block_samples`], counted in place (a whole row of the block is 32 bytes,
+    /// whose even ones are compared at once; gathering them first cost more than the count).
+    fn block_at_most(&self, i: usize, j: usize, level: u8) -> bool {
+        const BLOCK: usize = EXPOSURE_BLOCK;
+        let (w, h) = (self.width, self.height);
+        let (mut below, mut n) = (0usize, 0usize);
+        for y in (j * BLOCK..((j + 1) * BLOCK).min(h)).step_by(4) {
+            let row = &self.dark[y * w..][i * BLOCK..((i + 1) * BLOCK).min(w)];
+            if let Ok(whole) = <&[u8; BLOCK]>::try_from(row) {
+                below += whole
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &v)| u8::from(v <= level) & u8::from(k % 2 == 0))
+                    .sum::<u8>() as usize;
+                n += BLOCK / 2;
+            } else {
+                below += row.iter().step_by(2).filter(|&&v| v <= level).count();
+                n += row.len().div_ceil(2);
+            }
+        }
+        below >= n.div_ceil(10)
+    }
+
+    /// Block `(i, j)`'s samples of darkness for the exposure check, every fourth row and
+    /// every other column, in one array (at most 8 rows of 16) padded with 255, which
+    /// [`tenth_level`] never counts; and how many there are.
+    fn block_samples(&self, i: usize, j: usize) -> ([u8; SAMPLES], usize) {
+        const BLOCK: usize = EXPOSURE_BLOCK;
+        let (w, h) = (self.width, self.height);
+        let mut samples = [255u8; SAMPLES];
+        let mut n = 0usize;
+        for y in (j * BLOCK..((j + 1) * BLOCK).min(h)).step_by(4) {
+            let row = &self.dark[y * w..][i * BLOCK..((i + 1) * BLOCK).min(w)];
+            if let Ok(whole) = <&[u8; BLOCK]>::try_from(row) {
+                // A whole block's row: every other byte, which the compiler packs.
+                let even: [u8; BLOCK / 2] = std::array::from_fn(|k| whole[2 * k]);
+                samples[n..n + BLOCK / 2].copy_from_slice(&even);
+                n += BLOCK / 2;
+            } else {
+                for &v in row.iter().step_by(2) {
+                    samples[n] = v;
+                    n += 1;
+                }
+            }
+        }
+        (samples, n)
+    }
+
     /// Labels runs above the low threshold and keeps components that pass the filters.
     pub(crate) fn label(&mut self, t: &Thresholds) {
         let (w, h) = (self.width, self.height);
@@ -298,7 +336,7 @@ impl Detector {
         self.blobs.clear();
         let low = t.low;
         let (runs, parent) = (&mut self.runs, &mut self.parent);
-        super::pixels::runs_above(&self.smooth, w, h, low, &mut |r| {
+        super::runs::runs_above(&self.smooth, w, h, low, &mut |r| {
             let id = runs.len() as u32;
             runs.push(Run {
                 y: r.y,
@@ -443,7 +481,8 @@ impl Detector {
                     continue;
                 }
                 let (ci, cj) = (ai.centroid(), aj.centroid());
-                if (ci[0] - cj[0]).hypot(ci[1] - cj[1]) < r {
+                let (dx, dy) = (ci[0] - cj[0], ci[1] - cj[1]);
+                if dx * dx + dy * dy < r * r {
                     self.accs[i].absorb(&aj);
                     self.accs[j as usize] = Acc::default();
                 }
@@ -572,6 +611,10 @@ fn tenth_level(samples: &[u8; SAMPLES], n: usize) -> u8 {
     lo
 }
 
+/// A block's tenth-percentile darkness at or below which the frame counts as lit as the
+/// reference (2 % of the background).
+const EXPOSURE_UNCHANGED: u8 = 5;
+
 fn find(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         let p = parent[i as usize];
@@ -594,6 +637,15 @@ fn union(parent: &mut [u32], a: u32, b: u32) {
 mod tests {
     use super::*;
 
+    /// Whether [`tenth_level`]`(samples, n)` is at most `level` (< 255): one step of its
+    /// bisection.
+    fn at_most(samples: &[u8; SAMPLES], n: usize, level: u8) -> bool {
+        let below = samples
+            .iter()
+            .fold(0u8, |c, &v| c.wrapping_add(u8::from(v <= level)));
+        usize::from(below) >= n.div_ceil(10)
+    }
+
     /// The definition: the lowest level whose running count reaches a tenth (a histogram).
     fn by_histogram(samples: &[u8]) -> u8 {
         let mut hist = [0u32; 256];
@@ -607,6 +659,39 @@ mod tests {
             level += 1;
         }
         level as u8
+    }
+
+    /// The exposure check's count in place is the count of the gathered samples, on frames
+    /// whose size is and is not a whole number of blocks.
+    #[test]
+    fn a_blocks_count_in_place_is_its_samples() {
+        let mut state = 0x853C_49E6_748F_EA9Bu64;
+        for (w, h) in [(640, 480), (100, 70), (33, 5), (7, 40)] {
+            let mut d = Detector::new(w, h);
+            for v in &mut d.dark {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                // Mostly background near the level, some marker.
+                *v = if state.is_multiple_of(7) {
+                    200
+                } else {
+                    (state % 12) as u8
+                };
+            }
+            for j in 0..h.div_ceil(EXPOSURE_BLOCK) {
+                for i in 0..w.div_ceil(EXPOSURE_BLOCK) {
+                    let (samples, n) = d.block_samples(i, j);
+                    for level in [0u8, 3, 5, 11, 254] {
+                        assert_eq!(
+                            d.block_at_most(i, j, level),
+                            at_most(&samples, n, level),
+                            "{w}×{h}, block ({i}, {j}), level {level}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]
@@ -630,11 +715,15 @@ mod tests {
                     if base == 7 {
                         samples[..n / 3].fill(230);
                     }
+                    let level = by_histogram(&samples[..n]);
                     assert_eq!(
                         tenth_level(&samples, n),
-                        by_histogram(&samples[..n]),
+                        level,
                         "n {n}, spread {spread}, base {base}"
                     );
+                    for at in [0u8, 5, 6, 7, 200, 229, 254] {
+                        assert_eq!(at_most(&samples, n, at), level <= at, "n {n}, at {at}");
+                    }
                 }
             }
         }

@@ -19,7 +19,7 @@
 
 use super::super::detect::Blob;
 use super::hypotheses::Explanation;
-use super::{Tracker, dist};
+use super::{Tracker, dist, norm};
 
 /// At most this many aliases are carried (the nearest, two lattice steps around in every
 /// direction); beyond them the placement is lost anyway.
@@ -110,8 +110,4 @@ impl Tracker {
     pub fn aliases_px(&self) -> &[[f64; 2]] {
         &self.aliases
     }
-}
-
-fn norm(v: [f64; 2]) -> f64 {
-    v[0].hypot(v[1])
 }

@@ -15,7 +15,7 @@
 use super::super::detect::Blob;
 use super::super::median;
 use super::spatial::Buckets;
-use super::{NONE, Tracker, dist};
+use super::{NONE, Tracker, dist, norm};
 
 /// How a hypothesis explains a frame.
 #[derive(Debug, Clone, Copy, Default)]
@@ -115,7 +115,7 @@ impl Tracker {
         let n = self.len();
         let prior = self.smoothed_velocity();
         let zero = vec![[0.0; 2]; n];
-        let moving = prior.iter().any(|v| v[0].hypot(v[1]) > 0.02 * s);
+        let moving = prior.iter().any(|v| norm(*v) > 0.02 * s);
         let mut hyps: Vec<Hypothesis> = Vec::with_capacity(24);
         hyps.push(self.hypothesis(zero.clone(), blobs));
         if moving {
@@ -257,7 +257,7 @@ impl Tracker {
         blobs: &[Blob],
     ) {
         for v in votes {
-            if v[0].hypot(v[1]) > min_len {
+            if norm(*v) > min_len {
                 let motion = base.iter().map(|p| [p[0] + v[0], p[1] + v[1]]).collect();
                 hyps.push(self.hypothesis(motion, blobs));
             }
@@ -280,7 +280,7 @@ impl Tracker {
         for (i, m) in motion.iter().enumerate() {
             let known = self.prev_whole[i] || (self.after_blind && self.measured_before_blind[i]);
             if known && self.in_view(self.pos[i]) {
-                sum += m[0].hypot(m[1]);
+                sum += norm(*m);
                 k += 1;
             }
         }
@@ -342,42 +342,49 @@ impl Tracker {
                 }
             }
         }
+        // The strongest neighbourhood first, at its strongest bin (its own count breaks a
+        // tie, then raster order): the bins that could be one (a neighbourhood of at least
+        // three) sorted once, then taken in turn while not cleared by a stronger one.
+        let mut order: Vec<(u64, u32)> = smooth
+            .iter()
+            .zip(&hist)
+            .enumerate()
+            .filter(|(_, (v, _))| **v >= 3)
+            .map(|(k, (&v, &c))| (((v as u64) << 32) | c as u64, k as u32))
+            .collect();
+        order.sort_unstable_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+        let clear = (DIFFERENT * s / bin).powi(2);
+        let span = clear.sqrt().ceil() as usize;
         let mut modes: Vec<[f64; 2]> = Vec::new();
-        while modes.len() < 6 {
-            // The strongest neighbourhood, at its strongest bin.
-            let (mut top, mut key, mut at) = (0u32, 0u64, (0, 0));
-            for y in 0..bins {
-                for x in 0..bins {
-                    let v = smooth[y * bins + x];
-                    let k = ((v as u64) << 32) | hist[y * bins + x] as u64;
-                    if k > key {
-                        (top, key, at) = (v, k, (x, y));
-                    }
-                }
-            }
-            if top < 3 {
+        for &(_, k) in &order {
+            if modes.len() == 6 {
                 break;
             }
+            let k = k as usize;
+            if smooth[k] == 0 {
+                continue;
+            }
+            let at = (k % bins, k / bins);
             let centre = [
                 (at.0 as f64 - half as f64) * bin,
                 (at.1 as f64 - half as f64) * bin,
             ];
-            let (mut sx, mut sy, mut k) = (0.0, 0.0, 0.0);
+            let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
             let near = (1.5 * bin) * (1.5 * bin);
             for c in &cands {
                 let (dx, dy) = (c[0] - centre[0], c[1] - centre[1]);
                 if dx * dx + dy * dy < near {
                     sx += c[0];
                     sy += c[1];
-                    k += 1.0;
+                    n += 1.0;
                 }
             }
-            if k > 0.0 {
-                modes.push([sx / k, sy / k]);
+            if n > 0.0 {
+                modes.push([sx / n, sy / n]);
             }
-            let clear = (DIFFERENT * s / bin).powi(2);
-            for y in 0..bins {
-                for x in 0..bins {
+            // Clear every bin within DIFFERENT spacings (the square around them only).
+            for y in at.1.saturating_sub(span)..=(at.1 + span).min(bins - 1) {
+                for x in at.0.saturating_sub(span)..=(at.0 + span).min(bins - 1) {
                     let (dx, dy) = (x as f64 - at.0 as f64, y as f64 - at.1 as f64);
                     if dx * dx + dy * dy < clear {
                         smooth[y * bins + x] = 0;

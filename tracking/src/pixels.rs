@@ -119,10 +119,10 @@ mod darkness_v3 {
     /// A camera's or decoder's frame is not in the cache when the pass starts, and the
     /// hardware's own prefetcher did not keep ahead of it: on this project's 2-core machine
     /// a 640×480 frame's pass took 0.18 ms cold against 0.11 ms in cache. Asking for the
-    /// frame's line 4 KiB ahead (from 2 KiB to 8 KiB, the same) brought it to 0.13 ms, and
-    /// the inverse's (1.8 MB, more than this machine's second-level cache holds beside the
-    /// frame) 1–3 % more of detection (docs/benchmarks/tracking.md, "Reading the frame
-    /// ahead").
+    /// frame's line 4 KiB ahead (from 2 KiB to 8 KiB, the same) brought it to 0.13 ms; the
+    /// inverse's (1.8 MB, more than this machine's second-level cache holds beside the
+    /// frame; 4096 elements are 8 KiB of it) 0.4–1.8 % more of detection, within the noise
+    /// (docs/benchmarks/tracking.md, "Reading the frame ahead").
     const PREFETCH_AHEAD: usize = 4096;
 
     /// Sixteen pixels: 48 bytes of RGB against 48 of the background's inverse.

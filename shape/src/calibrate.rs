@@ -97,10 +97,19 @@ impl Parts {
                     .collect(),
             );
         }
+        let flat = crate::frame::flat_field(background);
         Self {
             responses: presses
                 .iter()
-                .map(|p| local_linear::fit_response(&p.frame, background, &p.circle, ball_px))
+                .map(|p| {
+                    local_linear::fit_response(
+                        &p.frame,
+                        background,
+                        Some(&flat),
+                        &p.circle,
+                        ball_px,
+                    )
+                })
                 .collect(),
             sums,
         }
@@ -115,6 +124,7 @@ impl Parts {
                     .filter(keep)
                     .filter_map(|i| self.responses[i].clone())
                     .collect(),
+                flat_field: true,
             }),
             ModelKind::Lut => {
                 let mut dense = vec![[0.0f64; 3]; lut::BINS * lut::BINS * lut::BINS];

@@ -66,6 +66,8 @@ impl Depth {
             &mut buffers,
         );
         let background_ink = (marked * 500 > n).then(|| ink.clone());
+        let mut map = map;
+        map.light(&background);
         Ok(Self {
             background_ink,
             ink,

@@ -74,6 +74,15 @@ enum Inner {
 }
 
 impl SlopeMap {
+    /// Lights the model by the session's `background`: a model fitted on the flat-fielded
+    /// colour change is turned back into grey levels for this background
+    /// ([`Prepared::light`]); a model of the raw change is left as it is.
+    pub(crate) fn light(&mut self, background: &crate::frame::Rgb<'_>) {
+        if let Inner::LocalLinear(p) = &mut self.inner {
+            p.light(background);
+        }
+    }
+
     /// Slopes of the colour change (3 per pixel) where `touched`, zero elsewhere.
     pub(crate) fn slopes(&self, change: &[f32], touched: &[bool], gx: &mut [f32], gy: &mut [f32]) {
         match &self.inner {

@@ -87,15 +87,16 @@ fn held_out_ball_presses_read_the_balls_shape() {
         assert_eq!(h.presses.len(), 39);
         assert_eq!(h.sign_errors, 0);
     }
-    // Stated in docs/explanation/shape.md (measured 29 Nov: local-linear 3.1 % / 19.6 %
-    // (press_08), radius 2.8 % / 14.6 %, slope 4.1°, spurious 0.21; the table 9.2 % /
-    // 40.8 %, 8.8 % / 56.4 %). The targets (3 % median, 10 % on every press) are not
-    // met: the worst presses sit in the dim right and bottom of the frame.
+    // Stated in docs/explanation/shape.md (measured 30 Nov, with the flat field:
+    // local-linear 3.4 % / 14.2 % (press_08), radius 2.5 % / 8.9 %, slope 3.9°, spurious
+    // 0.22; the table 9.2 % / 40.8 %, 8.8 % / 56.4 %). The radius meets the targets
+    // (3 % median, 10 % on every press); the cap height does not: the worst presses sit in
+    // the dim right of the frame and at its top-left border.
     assert!(ll.height_median_pct <= 3.5, "{ll:?}");
-    assert!(ll.height_worst_pct <= 22.0, "{ll:?}");
-    assert!(ll.radius_median_pct <= 3.5, "{ll:?}");
-    assert!(ll.radius_worst_pct <= 17.0, "{ll:?}");
-    assert!(ll.slope_rms_median_deg <= 4.5, "{ll:?}");
+    assert!(ll.height_worst_pct <= 15.0, "{ll:?}");
+    assert!(ll.radius_median_pct <= 3.0, "{ll:?}");
+    assert!(ll.radius_worst_pct <= 10.0, "{ll:?}");
+    assert!(ll.slope_rms_median_deg <= 4.2, "{ll:?}");
     assert!(ll.spurious_worst <= 0.3, "{ll:?}");
     // The table, which cannot see the lights' vignetting, reads the caps at least twice as
     // far off, on the median and on the worst press.

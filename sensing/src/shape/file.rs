@@ -14,8 +14,10 @@ use super::CirclesFrom;
 
 /// `format:` of a shape file.
 pub const FORMAT: &str = "gelrig-shape";
-/// The version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The version this build writes. Version 2 added the local-linear model's `flat_field`
+/// (responses of the colour change relative to the background's light); version 1 files,
+/// whose responses are of the raw change, are still read.
+pub const VERSION: u32 = 2;
 
 /// What reading or writing a shape file (or its inputs) refuses.
 #[derive(Debug, thiserror::Error)]
@@ -151,10 +153,10 @@ impl ShapeFile {
                 GIVE,
             ));
         }
-        if h.version != Some(VERSION) {
+        if !matches!(h.version, Some(1) | Some(VERSION)) {
             return Err(err(
                 format!(
-                    "shape file version {:?}; this gelrig reads version {VERSION}",
+                    "shape file version {:?}; this gelrig reads versions 1 to {VERSION}",
                     h.version
                 ),
                 "use the gelrig that wrote it, or calibrate again with this one",
@@ -166,7 +168,9 @@ impl ShapeFile {
                 "the file was edited or truncated: calibrate again, or restore it",
             )
         })?;
-        let sane = s.width_px >= 2
+        // Version 1 predates the flat field: its responses are of the raw change.
+        let sane = (s.version >= 2 || !s.local_linear.flat_field)
+            && s.width_px >= 2
             && s.height_px >= 2
             && s.mm_per_px.is_finite()
             && s.mm_per_px > 0.0

@@ -98,14 +98,17 @@ impl Parts {
             );
         }
         let flat = crate::frame::flat_field(background);
+        let inks = crate::markers::press_inks(background, presses.iter().map(|p| &p.frame));
         Self {
             responses: presses
                 .iter()
-                .map(|p| {
+                .zip(&inks)
+                .map(|(p, ink)| {
                     local_linear::fit_response(
                         &p.frame,
                         background,
                         Some(&flat),
+                        ink.as_deref(),
                         &p.circle,
                         ball_px,
                     )

@@ -81,7 +81,9 @@ pub(crate) const FLAT_FIELD_SIGMA_PX: f64 = 2.0;
 /// across the frame, so the spline between calibration presses has less to bridge: on the
 /// 39 real ball presses left out in turn, the worst fitted sphere radius 14.6 → 8.9 %
 /// (docs/explanation/shape.md, "Flat field"). The blur keeps the sensor's noise out; the
-/// kernel reaches 4σ (17 taps, as OpenCV's default for this σ), mirrored at the borders.
+/// kernel reaches 4σ (17 taps, as OpenCV's default for this σ on floating-point images; the
+/// prototype the figures were first measured with blurred the background as floats),
+/// mirrored at the borders.
 pub(crate) fn flat_field(background: &Rgb<'_>) -> Vec<f32> {
     let (w, h) = (background.width, background.height);
     let radius = (4.0 * FLAT_FIELD_SIGMA_PX).round() as isize;

@@ -26,7 +26,9 @@ pub const SMOOTHING: f64 = 0.01;
 const NODE_PX: usize = 8;
 
 /// One calibration press's response: where it was (scaled to the frame, −0.5…0.5) and its
-/// `[c, ∂/∂gx, ∂/∂gy]` per channel (R, G, B), in units of 64 grey levels.
+/// `[c, ∂/∂gx, ∂/∂gy]` per channel (R, G, B), in units of 64 grey levels — of the
+/// flat-fielded change (times 128 over the background's light there) where the model's
+/// `flat_field` is set.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Response {
     /// Press centre, x / width − 0.5 and y / height − 0.5.
@@ -47,12 +49,14 @@ pub struct LocalLinear {
     pub flat_field: bool,
 }
 
-/// Fits one press's response on the pixels inside `RIM` of its circle; of the colour change
-/// times `flat` (per pixel and channel) where given.
+/// Fits one press's response on the pixels inside `RIM` of its circle, leaving out those
+/// marked in `ink` (a gel's markers, in the frame or the background) where given; of the
+/// colour change times `flat` (per pixel and channel) where given.
 pub fn fit_response(
     frame: &Rgb<'_>,
     background: &Rgb<'_>,
     flat: Option<&[f32]>,
+    ink: Option<&[bool]>,
     circle: &Circle,
     ball_px: f64,
 ) -> Option<Response> {
@@ -78,7 +82,9 @@ pub fn fit_response(
     for y in y0..=y1 {
         for x in x0..=x1 {
             let (xf, yf) = (x as f64, y as f64);
-            if (xf - circle.x_px).powi(2) + (yf - circle.y_px).powi(2) >= a * a {
+            if (xf - circle.x_px).powi(2) + (yf - circle.y_px).powi(2) >= a * a
+                || ink.is_some_and(|m| m[y * w + x])
+            {
                 continue;
             }
             let g = ball::slope(circle, ball_px, xf, yf);
@@ -275,7 +281,7 @@ impl Prepared {
     /// Inverts a flat-fielded model for the session's `background` (its light per pixel and
     /// channel, [`crate::frame::flat_field`]); nothing for a model of the raw change.
     pub(crate) fn light(&mut self, background: &Rgb<'_>) {
-        let Some(forward) = &self.forward else {
+        let Some(forward) = self.forward.take() else {
             return;
         };
         let flat = crate::frame::flat_field(background);
@@ -288,6 +294,9 @@ impl Prepared {
 
     /// Slopes of the colour change `change` (3 per pixel) where `touched`, zero elsewhere.
     pub(crate) fn slopes(&self, change: &[f32], touched: &[bool], gx: &mut [f32], gy: &mut [f32]) {
+        // A flat-fielded model has no inverse until it is lit ([`Prepared::light`]; `Depth`
+        // lights every map it is given): reading it unlit would leave the slopes as they were.
+        debug_assert_eq!(self.per_pixel.len(), touched.len(), "an unlit model");
         for (i, p) in self.per_pixel.iter().enumerate() {
             if !touched[i] {
                 gx[i] = 0.0;

@@ -53,9 +53,29 @@ fn shape_calibrates_on_ball_presses_and_writes_height_maps() {
     assert!(!refused.status.success());
     let said = String::from_utf8_lossy(&refused.stderr);
     assert!(
-        said.contains("v1.yaml") && said.contains("calibrate again"),
+        said.contains("v1.yaml") && said.contains("predates the flat field"),
         "{said}"
     );
+    // A version 1 file as it was written (no `flat_field`: responses of the raw change) is
+    // still read.
+    let raw: String = text
+        .replace("version: 2", "version: 1")
+        .lines()
+        .filter(|l| !l.contains("flat_field"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&old, raw).unwrap();
+    let out = gelrig_ok([
+        "shape".as_ref(),
+        dir.join("press_02.png").as_os_str(),
+        "--model".as_ref(),
+        old.as_os_str(),
+        "--background".as_ref(),
+        dir.join("background.png").as_os_str(),
+        "--out".as_ref(),
+        tmp.path().join("v1-maps").as_os_str(),
+    ]);
+    assert!(out.contains("1 height maps"), "{out}");
 
     // Two presses and the bead (against its own session's background).
     let maps = tmp.path().join("maps");
@@ -284,14 +304,14 @@ fn simulated_presses_read_back_the_simulators_surface() {
         100.0 * punch_rms,
         100.0 * punch_step
     );
-    // Measured 30 Nov (flat field): 1.06 % / 8.53 %; the sphere rms 12.4 %, its step +2.2 %;
-    // the punch rms 83.2 %, its step −40.5 % (docs/explanation/shape.md: the 5 % is met by
+    // Measured 30 Nov (flat field, marker ink left out of the fit): 2.62 % / 3.53 %; the
+    // sphere rms 10.0 %, its step −1.1 %; the punch rms 83.9 %, its step −43.1 % (docs/explanation/shape.md: the 5 % is met by
     // the sphere's step only: the gel's bulge around a contact is too gentle for the lights
     // and reads flat, and the punch's wall and wide contact defeat the datum).
     let held = &calibration_figures;
-    assert!(held.0 <= 3.5 && held.1 <= 9.0, "held-out {held:?}");
+    assert!(held.0 <= 3.0 && held.1 <= 5.0, "held-out {held:?}");
     assert!(sphere_step.abs() <= 0.06, "sphere step {sphere_step}");
-    assert!(sphere_rms <= 0.16, "sphere rms {sphere_rms}");
+    assert!(sphere_rms <= 0.12, "sphere rms {sphere_rms}");
     assert!(punch_step.abs() <= 0.45, "punch step {punch_step}");
 }
 
@@ -366,6 +386,7 @@ fn track_with_shape_reads_a_runs_depth_and_the_report_shows_it() {
         radius_ratio.iter().all(|r| (0.85..1.05).contains(r)),
         "{radius_ratio:?}"
     );
+    eprintln!("{out}");
     assert!(out.contains("calibrated on 16 ball presses"), "{out}");
     assert!(out.contains("circles: found in the image"), "{out}");
 
@@ -408,10 +429,11 @@ fn track_with_shape_reads_a_runs_depth_and_the_report_shows_it() {
         read.push((s["phase"].clone(), stage, cap, got));
     }
     eprintln!("(phase, stage depth, cap below the edge, deepest read): {read:.3?}");
-    // Measured 30 Nov (flat field): +4 % (1.0 mm) to +22 % (0.1 mm) over the cap; the docs state ≤ 30 %.
+    // Measured 30 Nov (flat field, marker ink left out of the fit): −1 % (1.0 mm) to +16 %
+    // (0.1 mm) against the cap; the docs state −5 to +30 %.
     for (_, stage, cap, got) in &read {
         assert!(
-            (0.0..0.30).contains(&(got / cap - 1.0)),
+            (-0.05..0.30).contains(&(got / cap - 1.0)),
             "at {stage} mm the cap is {cap:.3} mm and reads {got} mm"
         );
     }

@@ -169,8 +169,15 @@ impl ShapeFile {
             )
         })?;
         // Version 1 predates the flat field: its responses are of the raw change.
-        let sane = (s.version >= 2 || !s.local_linear.flat_field)
-            && s.width_px >= 2
+        if s.version < 2 && s.local_linear.flat_field {
+            return Err(err(
+                "version 1 with `local_linear.flat_field: true` (version 1 predates the flat \
+                 field: its responses are of the raw colour change)"
+                    .into(),
+                "calibrate again with this gelrig, or restore the file's `version: 2`",
+            ));
+        }
+        let sane = s.width_px >= 2
             && s.height_px >= 2
             && s.mm_per_px.is_finite()
             && s.mm_per_px > 0.0

@@ -57,20 +57,12 @@ impl Depth {
         background.same_size(map.width, map.height, "model was prepared for")?;
         let n = map.width * map.height;
         let mut buffers: [Vec<f32>; 3] = Default::default();
-        let mut ink = vec![false; n];
-        let marked = markers::mark_ink(
-            background.pixels,
-            map.width,
-            map.height,
-            &mut ink,
-            &mut buffers,
-        );
-        let background_ink = (marked * 500 > n).then(|| ink.clone());
+        let background_ink = markers::background_ink(&background, &mut buffers);
         let mut map = map;
         map.light(&background);
         Ok(Self {
             background_ink,
-            ink,
+            ink: vec![false; n],
             buffers,
             integrator: Integrator::new(map.width, map.height),
             map,

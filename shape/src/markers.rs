@@ -154,22 +154,31 @@ pub(crate) fn fill(
     }
 }
 
+/// The background's marker ink; `None` on a markerless gel (fewer than 0.2 % of its pixels
+/// read as ink), whose colour change then keeps every pixel.
+pub(crate) fn background_ink(
+    background: &crate::frame::Rgb<'_>,
+    buf: &mut [Vec<f32>; 3],
+) -> Option<Vec<bool>> {
+    let (w, h) = (background.width, background.height);
+    let mut ink = vec![false; w * h];
+    let marked = mark_ink(background.pixels, w, h, &mut ink, buf);
+    (marked * 500 > w * h).then_some(ink)
+}
+
 /// Each frame's marker ink with the background's (as [`crate::depth::Depth`] leaves it out of
-/// the colour change), for fitting the presses without it; all `None` on a markerless gel
-/// (fewer than 0.2 % of the background's pixels read as ink).
+/// the colour change), for fitting the presses without it; all `None` on a markerless gel.
 pub(crate) fn press_inks<'a>(
     background: &crate::frame::Rgb<'_>,
     frames: impl Iterator<Item = &'a crate::frame::Rgb<'a>>,
 ) -> Vec<Option<Vec<bool>>> {
     let (w, h) = (background.width, background.height);
     let mut buf: [Vec<f32>; 3] = Default::default();
-    let mut bg_ink = vec![false; w * h];
-    let marked = mark_ink(background.pixels, w, h, &mut bg_ink, &mut buf);
-    let inked = marked * 500 > w * h;
+    let bg_ink = background_ink(background, &mut buf);
     frames
         .map(|f| {
-            inked.then(|| {
-                let mut ink = bg_ink.clone();
+            bg_ink.as_ref().map(|bg| {
+                let mut ink = bg.clone();
                 mark_ink(f.pixels, w, h, &mut ink, &mut buf);
                 ink
             })

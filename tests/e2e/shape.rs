@@ -75,7 +75,7 @@ fn shape_calibrates_on_ball_presses_and_writes_height_maps() {
         "--out".as_ref(),
         tmp.path().join("v1-maps").as_os_str(),
     ]);
-    assert!(out.contains("1 height maps"), "{out}");
+    assert!(out.contains("1 height map in"), "{out}");
 
     // Two presses and the bead (against its own session's background).
     let maps = tmp.path().join("maps");

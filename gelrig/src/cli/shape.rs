@@ -97,8 +97,9 @@ impl Cmd {
         match write_height_maps(&file, which, &background, &self.frames, &out, self.ply) {
             Ok(rows) => {
                 out!(
-                    "{} height maps in {} (model {}; shape.csv: depth, contact area, centroid, volume)",
+                    "{} height map{} in {} (model {}; shape.csv: depth, contact area, centroid, volume)",
                     rows.len(),
+                    if rows.len() == 1 { "" } else { "s" },
                     out.display(),
                     which.unwrap_or(file.chosen).name()
                 );

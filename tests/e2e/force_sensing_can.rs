@@ -238,7 +238,9 @@ fn a_grasp_calibrated_in_its_jig_reads_the_relaxing_squeeze() {
 /// Fitted by symmetry (`gelrig calibrate --symmetric`), a sensor calibrated on the portable
 /// indentation runs reads the can's squeeze through its twist as through its hold: the
 /// twist's field (10 N·mm at 2 Hz, three times any twist of the calibration) has no
-/// feature Fz may read. Fitted on every feature, the twist moves the squeeze's reading.
+/// feature Fz may read. Fitted on every feature, the twist swings the squeeze's reading
+/// (measured 30 Nov, seed 2: its middle 80 % spans 36.5 N against the symmetric sensor's
+/// 4.8 N and the hold's 2.1 N).
 #[test]
 fn a_symmetric_sensor_keeps_the_cans_twist_out_of_the_squeeze() {
     let tmp = tempfile::tempdir().unwrap();
@@ -254,7 +256,8 @@ fn a_symmetric_sensor_keeps_the_cans_twist_out_of_the_squeeze() {
             .parse()
             .unwrap()
     };
-    let median_fz = |s: &SensorFile, label: &str| {
+    // A step's Fz: its median, and the spread of its middle 80 % (10th to 90th percentile).
+    let fz_of = |s: &SensorFile, label: &str| {
         let step = step_of(label);
         let mut v: Vec<f64> = sensing::sensor::read_wrench(s, &o.dir)
             .unwrap()
@@ -263,22 +266,37 @@ fn a_symmetric_sensor_keeps_the_cans_twist_out_of_the_squeeze() {
             .map(|r| r.fz_n)
             .collect();
         v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
+        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+        (at(0.5), at(0.9) - at(0.1))
     };
-    let (twist, hold) = (
-        median_fz(&symmetric, "twist"),
-        median_fz(&symmetric, "hold"),
+    let ((twist, symmetric_spread), (hold, hold_spread)) =
+        (fz_of(&symmetric, "twist"), fz_of(&symmetric, "hold"));
+    let twist_spread = symmetric_spread;
+    eprintln!(
+        "symmetric: twist {twist:.2} N (spread {twist_spread:.2}), hold {hold:.2} N (spread \
+         {hold_spread:.2})"
     );
     assert!(
         (twist - hold).abs() < 0.1 * hold,
         "symmetric: twist {twist} N against the hold's {hold} N"
     );
+    // Fitted on every feature the twist's field swings the squeeze's reading at 2 Hz. (Its
+    // median may stay near the hold's: the gel's memory averages the swings, since a
+    // reading that would pull keeps the history.)
     let every = portable_sensor();
-    let (twist, hold) = (median_fz(&every, "twist"), median_fz(&every, "hold"));
+    let ((twist, twist_spread), (hold, hold_spread)) =
+        (fz_of(&every, "twist"), fz_of(&every, "hold"));
+    eprintln!(
+        "every feature: twist {twist:.2} N (spread {twist_spread:.2}), hold {hold:.2} N \
+         (spread {hold_spread:.2})"
+    );
     assert!(
-        (twist - hold).abs() > 0.1 * hold,
-        "every feature: twist {twist} N, hold {hold} N — the twist no longer leaks, and this \
-         test no longer shows what the symmetric fit keeps out"
+        twist_spread > 0.2 * hold
+            && twist_spread > 3.0 * hold_spread
+            && twist_spread > 4.0 * symmetric_spread,
+        "every feature: the twist's Fz spreads {twist_spread} N (the hold's {hold_spread} N, at \
+         {hold} N; the symmetric sensor's twist {symmetric_spread} N) — the twist no longer \
+         leaks, and this test no longer shows what the symmetric fit keeps out"
     );
 }
 

@@ -46,9 +46,35 @@ pub const FEATURES: [&str; 8] = [
 ];
 
 /// Names of the traction map's integrals (at the nominal modulus), the features of the
-/// `traction-map` method.
-pub const TRACTION_FEATURES: [&str; 4] =
+/// `traction-map` method, and the normal integral times the contact's elongation
+/// ([`traction::elongation`]). The first four are every traction sensor's; the fifth is read
+/// only by a sensor calibrated on an elongated contact (sensor files from before it, and
+/// calibrations on round contacts only, have the four).
+///
+/// Why the fifth: calibrated on a punch and a sphere, the map reads a strip's normal force (a
+/// dowel, a can's side) high: the can's hold 17–24 % over ten trials
+/// (docs/explanation/force-sensing.md, "The can's strip"). Under a curved
+/// contact the gel's surface is caught as the contact grows and carries a frictional radial
+/// shear (Spence 1975, "The Hertz contact problem with finite friction", J. Elasticity 5);
+/// the map, which sees the pressure only through the layer's weak normal–tangential
+/// coupling, takes part of that shear for pressure, in a share set by the contact's
+/// plane-strain or axisymmetric shape. One scale cannot serve both, and the elongation,
+/// scale-free and unchanged by turns, tells them apart. The figures behind it:
+/// docs/explanation/force-sensing.md, "The can's strip: the elongation term".
+pub const TRACTION_FEATURES: [&str; 5] = [
+    "traction_fx",
+    "traction_fy",
+    "traction_fz",
+    "traction_tz",
+    ELONGATION_FEATURE,
+];
+
+/// The traction features of sensor files without the elongation term.
+pub const TRACTION_FEATURES_ROUND: [&str; 4] =
     ["traction_fx", "traction_fy", "traction_fz", "traction_tz"];
+
+/// The traction map's normal integral times the contact's elongation.
+pub const ELONGATION_FEATURE: &str = "traction_fz_elongation";
 
 /// How a feature changes when the whole load is turned or mirrored about the view's centre.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -70,9 +96,8 @@ fn symmetry(feature: &str) -> Option<Symmetry> {
     Some(match feature {
         "int_ux" | "scale_shear_x" | "traction_fx" => Symmetry::VectorX,
         "int_uy" | "scale_shear_y" | "traction_fy" => Symmetry::VectorY,
-        "int_r_dot_u" | "int_r2_r_dot_u" | "scale_normal" | "radial_offset_mm" | "traction_fz" => {
-            Symmetry::Scalar
-        }
+        "int_r_dot_u" | "int_r2_r_dot_u" | "scale_normal" | "radial_offset_mm" | "traction_fz"
+        | ELONGATION_FEATURE => Symmetry::Scalar,
         "int_r_cross_u" | "int_r2_r_cross_u" | "scale_twist" | "traction_tz" => Symmetry::Pseudo,
         "int_x_ux_minus_y_uy" | "int_x_uy_plus_y_ux" => Symmetry::Rank2,
         _ => return None,

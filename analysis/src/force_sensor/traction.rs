@@ -14,6 +14,31 @@
 use mechanics::operator::{Compliance, Grid, LayerOperator};
 use nalgebra::{DMatrix, DVector};
 
+/// How elongated a contact region is, from its second moments (xx, yy, xy) about its
+/// centroid: 1 − λ₂/λ₁ of their matrix's eigenvalues — 0 for a disc (or any contact as wide
+/// as it is long), 0.75 for an ellipse of axes 2:1, towards 1 for a strip. Scale-free and
+/// unchanged by turns, so a symmetric fit may give it to the normal force. A degenerate
+/// region (no extent) is round.
+pub fn elongation(second_moments: [f64; 3]) -> f64 {
+    let [sxx, syy, sxy] = second_moments;
+    let mean = 0.5 * (sxx + syy);
+    let diff = (0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy).sqrt();
+    let major = mean + diff;
+    if !(major.is_finite() && major > 0.0) {
+        return 0.0;
+    }
+    (2.0 * diff / major).clamp(0.0, 1.0)
+}
+
+/// A contact at least this elongated ([`elongation`]; axes 1.4:1 or longer) is a strip
+/// for the calibration: the elongation term is fitted only where such contacts are among the
+/// frames ([`ELONGATED_SHARE`]).
+pub const ELONGATED: f64 = 0.5;
+
+/// The share of a fit's frames with a contact that must be [`ELONGATED`] for the elongation
+/// term to be fitted: with fewer, it has nothing to be fitted on but noise.
+pub const ELONGATED_SHARE: f64 = 0.05;
+
 /// Nominal shear modulus the kernels are computed at, MPa.
 pub const NOMINAL_MU_MPA: f64 = 1.0;
 
@@ -242,6 +267,30 @@ fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A disc is round, a 2:1 ellipse 0.75 at any angle, a 20 × 4 mm strip 0.96; nothing is
+    /// round for an empty region rather than NaN.
+    #[test]
+    fn elongation_is_the_moments_eigenvalue_ratio() {
+        assert_eq!(elongation([3.0, 3.0, 0.0]), 0.0);
+        for deg in [0.0f64, 30.0, 90.0, 135.0] {
+            let (c, s) = (deg.to_radians().cos(), deg.to_radians().sin());
+            let (l1, l2) = (4.0, 1.0);
+            let m = [
+                l1 * c * c + l2 * s * s,
+                l1 * s * s + l2 * c * c,
+                (l1 - l2) * s * c,
+            ];
+            assert!(
+                (elongation(m) - 0.75).abs() < 1e-12,
+                "{deg}°: {}",
+                elongation(m)
+            );
+        }
+        assert!((elongation([400.0 / 12.0, 16.0 / 12.0, 0.0]) - 0.96).abs() < 1e-12);
+        assert_eq!(elongation([0.0, 0.0, 0.0]), 0.0);
+        assert_eq!(elongation([f64::NAN, 1.0, 0.0]), 0.0);
+    }
 
     /// A disc's moments give the disc's cells; an ellipse along a turned axis keeps its
     /// length and width.

@@ -84,6 +84,8 @@ pub const CELLS: [f64; 3] = [1.0, 1.5, 2.0];
 #[derive(Debug, Clone, Copy)]
 struct Spec {
     method: Method,
+    /// The features it reads.
+    names: &'static [&'static str],
     symmetric: bool,
     /// The traction map's settings, λ chosen (traction only).
     traction: Option<TractionSettings>,
@@ -151,10 +153,12 @@ fn consider_traction(
         let kernel = super::reader::kernel_from_view(&g.view, &base);
         for &support in &supports {
             let t = traction_settings(g, &kernel, TractionSettings { support, ..base });
-            let per_run = samples_every(g, &How::Traction(&kernel, t), every);
+            let how = How::Traction(&kernel, t, g.elongated());
+            let per_run = samples_every(g, &how, every);
             for &sym in symmetric {
                 let spec = Spec {
                     method: Method::Traction,
+                    names: how.names(),
                     symmetric: sym,
                     traction: Some(t),
                 };
@@ -195,7 +199,15 @@ pub(super) fn choose(
     let n_groups = if n_groups >= 2 && {
         let per_run = samples(g, &How::Moments);
         let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
-        left_out(&per_run, &groups, n_groups, &ranges(&all), None, &noise).is_some()
+        left_out(
+            &per_run,
+            &groups,
+            n_groups,
+            &ranges(&all),
+            (How::Moments.names(), false),
+            &noise,
+        )
+        .is_some()
     } {
         n_groups
     } else {
@@ -215,6 +227,7 @@ pub(super) fn choose(
                 for &sym in &symmetric {
                     let spec = Spec {
                         method,
+                        names: How::Moments.names(),
                         symmetric: sym,
                         traction: None,
                     };
@@ -234,16 +247,15 @@ pub(super) fn choose(
                     }
                     continue;
                 };
+                let how = How::Scale(&basis, &settings);
                 for &sym in &symmetric {
                     let spec = Spec {
                         method,
+                        names: how.names(),
                         symmetric: sym,
                         traction: None,
                     };
-                    board.consider(
-                        spec,
-                        samples_every(g, &How::Scale(&basis, &settings), every),
-                    );
+                    board.consider(spec, samples_every(g, &how, every));
                 }
             }
             Method::Traction => {
@@ -280,7 +292,7 @@ pub(super) fn choose(
         .map(|t| super::reader::kernel_from_view(&g.view, &t));
     let how = match (spec.method, &scale, &kernel, spec.traction) {
         (Method::Scale, Some((settings, basis)), _, _) => How::Scale(basis, settings),
-        (Method::Traction, _, Some(k), Some(t)) => How::Traction(k, t),
+        (Method::Traction, _, Some(k), Some(t)) => How::Traction(k, t, g.elongated()),
         _ => How::Moments,
     };
     let per_run = samples(g, &how);
@@ -369,23 +381,16 @@ fn score(
     loaded: &[String],
     noise: &BTreeMap<String, f64>,
 ) -> Candidate {
-    let names = match spec.method {
-        Method::Moments => &analysis::force_sensor::FEATURES[..],
-        Method::Traction => &analysis::force_sensor::TRACTION_FEATURES[..],
-        Method::Scale => &analysis::force_sensor::scale::SCALE_FEATURES[..],
-    };
-    let masks = spec
-        .symmetric
-        .then(|| analysis::force_sensor::channel_features(names));
+    let reads = (spec.names, spec.symmetric);
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
     let ranges = ranges(&all);
     let per_channel: BTreeMap<String, ErrorStats> = if n_groups >= 2 {
-        match left_out(per_run, groups, n_groups, &ranges, masks.as_deref(), noise) {
+        match left_out(per_run, groups, n_groups, &ranges, reads, noise) {
             Some((pooled, _, _)) => pooled,
             None => return unscored(spec),
         }
     } else {
-        match held_out(per_run, &ranges, masks.as_deref()) {
+        match held_out(per_run, &ranges, spec.names, spec.symmetric) {
             Ok(h) => h.channels,
             Err(_) => return unscored(spec),
         }
@@ -431,7 +436,7 @@ fn loaded_channels(g: &Gathered) -> Vec<String> {
     let per_run = samples(g, &How::Moments);
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
     let ranges = ranges(&all);
-    match held_out(&per_run, &ranges, None) {
+    match held_out(&per_run, &ranges, How::Moments.names(), false) {
         Ok(h) => h
             .channels
             .into_iter()
@@ -450,7 +455,7 @@ fn loaded_channels(g: &Gathered) -> Vec<String> {
 fn channel_noise(g: &Gathered) -> BTreeMap<String, f64> {
     let per_run = samples(g, &How::Moments);
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
-    held_out(&per_run, &ranges(&all), None)
+    held_out(&per_run, &ranges(&all), How::Moments.names(), false)
         .map(|h| h.channels.into_iter().map(|(c, s)| (c, s.rmse)).collect())
         .unwrap_or_default()
 }
@@ -463,7 +468,7 @@ fn left_out(
     groups: &[usize],
     n_groups: usize,
     ranges: &BTreeMap<String, [f64; 2]>,
-    masks: Option<&[Vec<bool>]>,
+    (names, symmetric): (&[&str], bool),
     noise: &BTreeMap<String, f64>,
 ) -> Option<(
     BTreeMap<String, ErrorStats>,
@@ -501,7 +506,7 @@ fn left_out(
             .filter(|(_, g)| **g != k)
             .flat_map(|(r, _)| &r.samples)
             .collect();
-        let model = fit(&train, masks).ok()?;
+        let model = fit(&train, names, symmetric).ok()?;
         let train_ranges = super::fitting::ranges(&train);
         let train_loads: Vec<[bool; 4]> = groups
             .iter()
@@ -586,11 +591,16 @@ fn unseen_shape(
     if n_groups < 2 {
         return None;
     }
-    let masks = symmetric.then(|| analysis::force_sensor::channel_features(names));
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
     let ranges = ranges(&all);
-    let (pooled, per_group, relative) =
-        left_out(per_run, groups, n_groups, &ranges, masks.as_deref(), noise)?;
+    let (pooled, per_group, relative) = left_out(
+        per_run,
+        groups,
+        n_groups,
+        &ranges,
+        (names, symmetric),
+        noise,
+    )?;
     let indenter_of = |k: usize| {
         groups
             .iter()

@@ -8,7 +8,9 @@ use std::path::Path;
 
 use analysis::force_sensor::ridge::{ChannelFit, LinearModel};
 use analysis::force_sensor::scale::SCALE_FEATURES;
-use analysis::force_sensor::{CHANNELS, FEATURES, Layout, TRACTION_FEATURES};
+use analysis::force_sensor::{
+    CHANNELS, FEATURES, Layout, TRACTION_FEATURES, TRACTION_FEATURES_ROUND,
+};
 use serde::{Deserialize, Serialize};
 
 pub use super::scale::ScaleSettings;
@@ -16,8 +18,10 @@ pub use super::scale::ScaleSettings;
 /// What every sensor file says it is.
 pub const FORMAT: &str = "gelrig-sensor";
 /// The newest version this build writes and reads (2 added `relaxation`; 3 `symmetric` and
-/// the traction map's `ellipse`; 4 `chosen_by`, `unseen_shape` and `envelope`).
-pub const VERSION: u32 = 4;
+/// the traction map's `ellipse`; 4 `chosen_by`, `unseen_shape` and `envelope`; 5 the traction
+/// map's elongation term). A sensor without that term is written as version 4, so an
+/// older gelrig still reads it.
+pub const VERSION: u32 = 5;
 /// Field moments, ridge per channel ([`analysis::force_sensor`]).
 pub const METHOD: &str = "field-moments-ridge";
 /// The inverse traction map's integrals, ridge per channel
@@ -446,9 +450,29 @@ impl SensorFile {
                 ));
             }
         };
-        if self.features != features {
+        // A traction sensor calibrated on round contacts only reads without the elongation
+        // term (as every one did before it).
+        let round = self.method == METHOD_TRACTION && self.features == TRACTION_FEATURES_ROUND;
+        let p = if round {
+            TRACTION_FEATURES_ROUND.len()
+        } else {
+            p
+        };
+        if self.method == METHOD_TRACTION && self.features == TRACTION_FEATURES && self.version < 5
+        {
             return Err(format!(
-                "features {:?}, expected {features:?}",
+                "version {} with the elongation term, which came with version 5",
+                self.version
+            ));
+        }
+        if self.features != features && !round {
+            let or_round = if self.method == METHOD_TRACTION {
+                format!(" (or, without the elongation term, {TRACTION_FEATURES_ROUND:?})")
+            } else {
+                String::new()
+            };
+            return Err(format!(
+                "features {:?}, expected {features:?}{or_round}",
                 self.features
             ));
         }

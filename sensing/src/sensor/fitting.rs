@@ -28,14 +28,13 @@ pub(super) fn finish(
     let layout = &g.layout;
     let all: Vec<&Sample> = per_run.iter().flat_map(|r| &r.samples).collect();
     let names = how.names();
-    let masks = symmetric.then(|| analysis::force_sensor::channel_features(names));
-    let model = fit(&all, masks.as_deref()).map_err(|source| SensorError::Model {
+    let model = fit(&all, names, symmetric).map_err(|source| SensorError::Model {
         path: first.to_path_buf(),
         source,
     })?;
     let ranges = ranges(&all);
     let held_out =
-        held_out(&per_run, &ranges, masks.as_deref()).map_err(|source| SensorError::Model {
+        held_out(&per_run, &ranges, names, symmetric).map_err(|source| SensorError::Model {
             path: first.to_path_buf(),
             source,
         })?;
@@ -47,7 +46,12 @@ pub(super) fn finish(
     );
     Ok(SensorFile {
         format: FORMAT.into(),
-        version: VERSION,
+        // The elongation term came with version 5; without it the file is a version 4 one.
+        version: if names.contains(&analysis::force_sensor::ELONGATION_FEATURE) {
+            VERSION
+        } else {
+            4
+        },
         created: jiff::Timestamp::now().to_string(),
         sensor: g.sensor.clone(),
         view: view.clone(),
@@ -65,7 +69,7 @@ pub(super) fn finish(
         model: SensorFile::model_file(&model),
         symmetric,
         traction: match how {
-            How::Traction(_, t) => Some(*t),
+            How::Traction(_, t, _) => Some(*t),
             _ => None,
         },
         scale: match how {
@@ -117,14 +121,41 @@ pub fn span(ranges: &BTreeMap<String, [f64; 2]>, channel: &str) -> f64 {
     }
 }
 
-/// Each channel fitted on the features `masks` marks for it (every feature without).
+/// Each channel fitted on the features `names` it may see ([`masks`]).
 pub(super) fn fit(
     samples: &[&Sample],
-    masks: Option<&[Vec<bool>]>,
+    names: &[&str],
+    symmetric: bool,
 ) -> Result<LinearModel, analysis::force_sensor::SensorError> {
     let x: Vec<Vec<f64>> = samples.iter().map(|s| s.features.clone()).collect();
     let y: Vec<Vec<f64>> = samples.iter().map(|s| s.wrench.clone()).collect();
-    LinearModel::fit_masked(&x, &y, masks)
+    let masks = masks(names, symmetric, samples);
+    LinearModel::fit_masked(&x, &y, masks.as_deref())
+}
+
+/// Which of `names` each channel is fitted on: with `symmetric`, those that turn as it does
+/// ([`analysis::force_sensor::channel_features`]); and the traction map's elongation term
+/// only where the fit's own `samples` hold elongated contacts — a fit on round contacts
+/// alone (an indenter left out of a calibration that has one strip) has nothing to fit it
+/// on, and would extrapolate noise to the shape it never saw. `None`: every feature.
+pub(super) fn masks(
+    names: &[&str],
+    symmetric: bool,
+    samples: &[&Sample],
+) -> Option<Vec<Vec<bool>>> {
+    let mut masks = symmetric.then(|| analysis::force_sensor::channel_features(names));
+    let term = names
+        .iter()
+        .position(|n| *n == analysis::force_sensor::ELONGATION_FEATURE);
+    if let Some(j) = term
+        && !super::gather::elongated_enough(samples.iter().map(|s| s.region.as_ref()))
+    {
+        let m = masks.get_or_insert_with(|| vec![vec![true; names.len()]; CHANNELS.len()]);
+        for channel in m.iter_mut() {
+            channel[j] = false;
+        }
+    }
+    masks
 }
 
 /// Folds of the held-out error.
@@ -135,7 +166,8 @@ const FOLDS: usize = 5;
 pub(super) fn held_out(
     runs: &[RunSamples],
     ranges: &BTreeMap<String, [f64; 2]>,
-    masks: Option<&[Vec<bool>]>,
+    names: &[&str],
+    symmetric: bool,
 ) -> Result<HeldOut, analysis::force_sensor::SensorError> {
     // Every fifth frame of each run in a fold: each fold holds every run's loads.
     let all: Vec<(usize, &Sample)> = runs
@@ -150,7 +182,7 @@ pub(super) fn held_out(
             .filter(|(i, _)| i % folds != k)
             .map(|(_, s)| *s)
             .collect();
-        let model = fit(&train, masks)?;
+        let model = fit(&train, names, symmetric)?;
         for (i, s) in &all {
             if i % folds == k {
                 let (v, _) = model.predict(&s.features);
@@ -182,5 +214,66 @@ pub fn stats(errors: &[f64], range: f64) -> ErrorStats {
             0.0
         },
         bias: errors.iter().sum::<f64>() / n,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sensor::history::Region;
+    use analysis::force_sensor::{TRACTION_FEATURES, TRACTION_FEATURES_ROUND};
+
+    /// A frame whose contact has second moments `m` (px²), or none.
+    fn frame(m: Option<[f64; 3]>) -> Sample {
+        Sample {
+            features: vec![0.0; 5],
+            wrench: vec![0.0; 4],
+            region: m.map(|m| Region {
+                centroid_px: [0.0, 0.0],
+                radius_px: 10.0,
+                second_moments_px2: Some(m),
+            }),
+        }
+    }
+
+    #[test]
+    fn the_elongation_term_is_fitted_only_on_elongated_contacts() {
+        let disc = frame(Some([25.0, 25.0, 0.0]));
+        let strip = frame(Some([400.0, 10.0, 0.0]));
+        let none = frame(None);
+        let round: Vec<&Sample> = vec![&disc; 40].into_iter().chain([&none; 10]).collect();
+        // Round contacts only: the term is masked out of every channel, nothing else is.
+        let m =
+            masks(&TRACTION_FEATURES, false, &round).expect("round contacts: the term is masked");
+        assert_eq!(m.len(), CHANNELS.len());
+        for channel in &m {
+            assert_eq!(channel, &[true, true, true, true, false]);
+        }
+        // Two strips in forty contacts (5 %): fitted, on every channel without symmetry...
+        let some: Vec<&Sample> = vec![&disc; 38].into_iter().chain([&strip; 2]).collect();
+        assert_eq!(masks(&TRACTION_FEATURES, false, &some), None);
+        // ...and on Fz alone with it (a scalar), with the other features as before.
+        let sym = masks(&TRACTION_FEATURES, true, &some).expect("symmetric: masks");
+        assert_eq!(
+            sym,
+            analysis::force_sensor::channel_features(&TRACTION_FEATURES)
+        );
+        assert_eq!(
+            sym.iter().map(|c| c[4]).collect::<Vec<_>>(),
+            [false, false, true, false]
+        );
+        // One strip in forty is too few; a sensor without the term has nothing to mask.
+        let one: Vec<&Sample> = vec![&disc; 39].into_iter().chain([&strip; 1]).collect();
+        assert_eq!(
+            masks(&TRACTION_FEATURES, true, &one).expect("one strip in forty: masked"),
+            analysis::force_sensor::channel_features(&TRACTION_FEATURES)
+                .into_iter()
+                .map(|mut c| {
+                    c[4] = false;
+                    c
+                })
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(masks(&TRACTION_FEATURES_ROUND, false, &round), None);
     }
 }

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use analysis::force_sensor::scale::{SCALE_FEATURES, ScaleBasis};
 use analysis::force_sensor::traction::TractionKernel;
-use analysis::force_sensor::{FEATURES, Layout, TRACTION_FEATURES};
+use analysis::force_sensor::{FEATURES, Layout, TRACTION_FEATURES, TRACTION_FEATURES_ROUND};
 
 use super::file::{RunRef, ScaleSettings, TractionSettings, View};
 use super::{SensorError, reference_at, run_frames, run_mm_per_px, unfit};
@@ -267,7 +267,9 @@ pub(super) struct Gathered {
 /// What the features are.
 pub(super) enum How<'a> {
     Moments,
-    Traction(&'a TractionKernel, TractionSettings),
+    /// The traction map's integrals, with the elongation term where the calibration holds
+    /// elongated contacts ([`Gathered::elongated`]).
+    Traction(&'a TractionKernel, TractionSettings, bool),
     Scale(&'a ScaleBasis, &'a ScaleSettings),
 }
 
@@ -276,10 +278,51 @@ impl How<'_> {
     pub(super) fn names(&self) -> &'static [&'static str] {
         match self {
             How::Moments => &FEATURES[..],
-            How::Traction(..) => &TRACTION_FEATURES[..],
+            How::Traction(_, _, true) => &TRACTION_FEATURES[..],
+            How::Traction(_, _, false) => &TRACTION_FEATURES_ROUND[..],
             How::Scale(..) => &SCALE_FEATURES[..],
         }
     }
+}
+
+impl Gathered {
+    /// Whether the runs' contacts include elongated ones (a strip, a dowel, a can's side),
+    /// enough for the traction map's elongation term to be fitted
+    /// ([`elongated_enough`]). Round contacts only: the term is left out of the sensor.
+    pub(super) fn elongated(&self) -> bool {
+        elongated_enough(
+            self.pending
+                .iter()
+                .flat_map(|p| p.frames.iter().map(|(f, _)| f.contact.as_ref())),
+        )
+    }
+}
+
+/// Whether at least [`ELONGATED_SHARE`] of the `regions` with a contact are [`ELONGATED`]
+/// (regions without recorded moments count as round).
+///
+/// [`ELONGATED_SHARE`]: analysis::force_sensor::traction::ELONGATED_SHARE
+/// [`ELONGATED`]: analysis::force_sensor::traction::ELONGATED
+pub(super) fn elongated_enough<'r>(
+    regions: impl Iterator<Item = Option<&'r super::history::Region>>,
+) -> bool {
+    use analysis::force_sensor::traction::{ELONGATED, ELONGATED_SHARE};
+    let (mut contacts, mut long) = (0usize, 0usize);
+    for r in regions.flatten() {
+        contacts += 1;
+        if elongation_of(Some(r)) >= ELONGATED {
+            long += 1;
+        }
+    }
+    contacts > 0 && long as f64 >= ELONGATED_SHARE * contacts as f64
+}
+
+/// A contact region's elongation ([`analysis::force_sensor::traction::elongation`]); 0 for
+/// none, or for a region without recorded moments (a disc).
+pub(super) fn elongation_of(region: Option<&super::history::Region>) -> f64 {
+    region
+        .and_then(|r| r.second_moments_px2)
+        .map_or(0.0, analysis::force_sensor::traction::elongation)
 }
 
 /// Each run's frames read `how`: features against the force sensor's wrench, and each
@@ -305,15 +348,19 @@ pub(super) fn samples_every(g: &Gathered, how: &How<'_>, stride: usize) -> Vec<R
                     let features = match how {
                         How::Moments => layout.features(&u).to_vec(),
                         How::Scale(basis, _) => basis.features(&u),
-                        How::Traction(kernel, t) => super::reader::traction_map(
-                            layout,
-                            kernel,
-                            t,
-                            &u,
-                            f.contact,
-                            Some(t.lambda),
-                        )
-                        .map_or(vec![0.0; 4], |m| m.wrench.to_vec()),
+                        How::Traction(kernel, t, elongated) => super::reader::traction_features(
+                            super::reader::traction_map(
+                                layout,
+                                kernel,
+                                t,
+                                &u,
+                                f.contact,
+                                Some(t.lambda),
+                            )
+                            .as_ref(),
+                            f.contact.as_ref(),
+                            *elongated,
+                        ),
                     };
                     Sample {
                         features,

@@ -6,8 +6,9 @@
 //! - **a contact the image missed for a frame.** The contact finder can miss a frame in a
 //!   loaded grasp (a swing blurs the colour change; once in the shipped `lifting-can`,
 //!   seed 2, with the gel pressed at 2.9 px rms). Read without a region, that frame would
-//!   count as the gel letting go and restart the history from rest. While the field's rms is
-//!   at least half what it was at the last region, the last region stands in.
+//!   count as the gel letting go (its elastic force dropped to zero in the history). While
+//!   the field's rms is at least half what it was at the last region, the last region
+//!   stands in.
 //! - **an elastic force the calibration cannot vouch for.** A gel pressed by an object
 //!   carries no pulling normal force, and an elastic reading far beyond the calibrated
 //!   range is the linear model extrapolating: both are the model outside its calibration

@@ -98,7 +98,27 @@ pub fn write_maps(
                     .unwrap_or(1.0)
                     / model.scale.get(c).copied().unwrap_or(1.0)
             };
-            (file.layout(), (t, None), [g(0), g(1), g(2), g(3)], true)
+            // With the elongation term Fz also moves with the map's Fz through it, by the
+            // frame's elongation: ∂F_z/∂F̃_z = g(2) + e·(its weight over its scale).
+            let term = file
+                .features
+                .iter()
+                .position(|f| f == analysis::force_sensor::ELONGATION_FEATURE);
+            let g_elongation = term.map_or(0.0, |j| {
+                model
+                    .channels
+                    .get(2)
+                    .and_then(|ch| ch.weights.get(j))
+                    .copied()
+                    .unwrap_or(0.0)
+                    / model.scale.get(j).copied().unwrap_or(1.0)
+            });
+            (
+                file.layout(),
+                (t, None),
+                ([g(0), g(1), g(2), g(3)], g_elongation, term.is_some()),
+                true,
+            )
         }
         MapSource::Nominal {
             thickness_mm,
@@ -121,12 +141,13 @@ pub fn write_maps(
             (
                 Layout::new(refs, *mm_per_px, centre),
                 (t, Some(())),
-                [1.0; 4],
+                ([1.0; 4], 0.0, false),
                 false,
             )
         }
     };
     let (t, per_frame_gcv) = settings;
+    let (gains, g_elongation, elongated) = gains;
     let map = layout
         .match_markers(&first.field.reference_px)
         .map_err(|source| SensorError::Model {
@@ -181,7 +202,11 @@ pub fn write_maps(
         // the integrals themselves.
         let w: Vec<f64> = match (&model, read.get(&f.frame)) {
             (Some(_), Some(r)) => r.to_vec(),
-            (Some(model), None) => model.predict(&m.wrench).0,
+            (Some(model), None) => {
+                let features =
+                    super::reader::traction_features(Some(&m), f.contact.as_ref(), elongated);
+                model.predict(&features).0
+            }
             (None, _) => m.wrench.to_vec(),
         };
         let row = TractionRow {
@@ -195,7 +220,16 @@ pub fn write_maps(
             lambda: m.lambda,
             misfit_um: m.misfit_mm * 1e3,
         };
-        let svg = picture(&m, &layout, gains, calibrated, f.frame, [w[0], w[1], w[2]]);
+        let mut frame_gains = gains;
+        frame_gains[2] += g_elongation * super::gather::elongation_of(f.contact.as_ref());
+        let svg = picture(
+            &m,
+            &layout,
+            frame_gains,
+            calibrated,
+            f.frame,
+            [w[0], w[1], w[2]],
+        );
         let path = dir.join(format!("traction_{:06}.svg", f.frame));
         std::fs::write(&path, svg).map_err(|e| werr(path, e.to_string()))?;
         csv.serialize(&row)

@@ -1,10 +1,10 @@
 //! A sensor file made ready to read frames: the layout, the model, and for the traction
 //! method the layer's kernels (computed once per sensor, a few milliseconds).
 
-use analysis::force_sensor::Layout;
 use analysis::force_sensor::memory::Memory;
 use analysis::force_sensor::ridge::LinearModel;
 use analysis::force_sensor::traction::{self, TractionKernel, TractionMap};
+use analysis::force_sensor::{Layout, TRACTION_FEATURES_ROUND};
 
 use super::file::{METHOD_SCALE, METHOD_TRACTION, SensorFile, TractionSettings, View};
 use analysis::force_sensor::scale::ScaleBasis;
@@ -25,6 +25,9 @@ pub struct Reader {
     /// The per-channel model.
     pub model: LinearModel,
     traction: Option<(TractionKernel, TractionSettings)>,
+    /// Whether the traction model reads the elongation term (files calibrated on
+    /// elongated contacts).
+    elongation: bool,
     scale: Option<ScaleBasis>,
     prony: Option<mechanics::Prony>,
     /// The Fz range the calibration's force sensor saw, N.
@@ -63,6 +66,8 @@ impl Reader {
             layout,
             model: file.model(),
             traction,
+            elongation: file.features.len() > TRACTION_FEATURES_ROUND.len()
+                && file.method == METHOD_TRACTION,
             scale,
             prony: file.prony(),
             fz_range_n: file.ranges.get("fz_n").copied(),
@@ -106,7 +111,7 @@ impl Reader {
             Some((kernel, t)) => {
                 let tmap = traction_map(&self.layout, kernel, t, &u, contact, Some(t.lambda));
                 Reading {
-                    features: tmap.as_ref().map_or(vec![0.0; 4], |m| m.wrench.to_vec()),
+                    features: traction_features(tmap.as_ref(), contact.as_ref(), self.elongation),
                     measured_share,
                     map: tmap,
                 }
@@ -170,6 +175,21 @@ impl Reader {
             judgement,
         }
     }
+}
+
+/// A traction map's features ([`analysis::force_sensor::TRACTION_FEATURES`]): its four
+/// integrals, and with `elongated` the normal one times the contact `region`'s elongation;
+/// zeros without a map (no contact).
+pub(crate) fn traction_features(
+    map: Option<&TractionMap>,
+    region: Option<&super::history::Region>,
+    elongated: bool,
+) -> Vec<f64> {
+    let mut f = map.map_or(vec![0.0; 4], |m| m.wrench.to_vec());
+    if elongated {
+        f.push(f[2] * super::gather::elongation_of(region));
+    }
+    f
 }
 
 /// The layer's kernels for a sensor's view.

@@ -20,14 +20,21 @@ use nalgebra::{DMatrix, DVector};
 /// unchanged by turns, so a symmetric fit may give it to the normal force. A degenerate
 /// region (no extent) is round.
 pub fn elongation(second_moments: [f64; 3]) -> f64 {
-    let [sxx, syy, sxy] = second_moments;
-    let mean = 0.5 * (sxx + syy);
-    let diff = (0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy).sqrt();
-    let major = mean + diff;
+    let (major, minor, _) = moment_axes(second_moments);
     if !(major.is_finite() && major > 0.0) {
         return 0.0;
     }
-    (2.0 * diff / major).clamp(0.0, 1.0)
+    ((major - minor) / major).clamp(0.0, 1.0)
+}
+
+/// The principal second moments (λ₁ ≥ λ₂) of a region's central moments [σxx, σyy, σxy]
+/// and the angle of the major axis from x, rad: the symmetric 2 × 2 eigenproblem in closed
+/// form, shared by the elongation, the map's support and the envelope's ellipse.
+pub fn moment_axes(second_moments: [f64; 3]) -> (f64, f64, f64) {
+    let [sxx, syy, sxy] = second_moments;
+    let mean = 0.5 * (sxx + syy);
+    let diff = (0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy).sqrt();
+    (mean + diff, mean - diff, 0.5 * (2.0 * sxy).atan2(sxx - syy))
 }
 
 /// A contact at least this elongated ([`elongation`]; axes 1.4:1 or longer) is a strip
@@ -141,12 +148,9 @@ pub fn ellipse_cells(
     {
         return Vec::new();
     }
-    // Eigen-decomposition of the 2 × 2 moment tensor.
-    let mean = 0.5 * (sxx + syy);
-    let diff = (0.25 * (sxx - syy).powi(2) + sxy * sxy).sqrt();
+    let (l1, l2, angle) = moment_axes([sxx, syy, sxy]);
     let floor = (0.5 * min_semi_mm / support.max(1e-9)).powi(2);
-    let (l1, l2) = ((mean + diff).max(floor), (mean - diff).max(floor));
-    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let (l1, l2) = (l1.max(floor), l2.max(floor));
     let (c, s) = (angle.cos(), angle.sin());
     let (a1, a2) = (2.0 * support * l1.sqrt(), 2.0 * support * l2.sqrt());
     let k = (a1.max(a2) / cell_mm).ceil() as i64;

@@ -102,11 +102,13 @@ fn ellipse(r: &Region) -> ([f64; 2], f64, f64, f64) {
         r.radius_px * r.radius_px / 4.0,
         0.0,
     ]);
-    let tr = sxx + syy;
-    let disc = ((sxx - syy) * (sxx - syy) + 4.0 * sxy * sxy).sqrt();
-    let (l1, l2) = (((tr + disc) / 2.0).max(0.0), ((tr - disc) / 2.0).max(0.0));
-    let theta = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    (r.centroid_px, 2.0 * l1.sqrt(), 2.0 * l2.sqrt(), theta)
+    let (l1, l2, theta) = analysis::force_sensor::traction::moment_axes([sxx, syy, sxy]);
+    (
+        r.centroid_px,
+        2.0 * l1.max(0.0).sqrt(),
+        2.0 * l2.max(0.0).sqrt(),
+        theta,
+    )
 }
 
 /// The angle of a region's major axis.

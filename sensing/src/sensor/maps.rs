@@ -14,6 +14,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use analysis::force_sensor::Layout;
+use analysis::force_sensor::ridge::LinearModel;
 use analysis::force_sensor::traction::{TractionKernel, TractionMap};
 use serde::Serialize;
 
@@ -87,38 +88,8 @@ pub fn write_maps(
                     "calibrate with `gelrig calibrate --method traction` for traction pictures",
                 ));
             };
-            let model = file.model();
-            // ∂F_c/∂F̃_c: the model's own-channel weight over its feature scale.
-            let g = |c: usize| {
-                model
-                    .channels
-                    .get(c)
-                    .and_then(|ch| ch.weights.get(c))
-                    .copied()
-                    .unwrap_or(1.0)
-                    / model.scale.get(c).copied().unwrap_or(1.0)
-            };
-            // With the elongation term Fz also moves with the map's Fz through it, by the
-            // frame's elongation: ∂F_z/∂F̃_z = g(2) + e·(its weight over its scale).
-            let term = file
-                .features
-                .iter()
-                .position(|f| f == analysis::force_sensor::ELONGATION_FEATURE);
-            let g_elongation = term.map_or(0.0, |j| {
-                model
-                    .channels
-                    .get(2)
-                    .and_then(|ch| ch.weights.get(j))
-                    .copied()
-                    .unwrap_or(0.0)
-                    / model.scale.get(j).copied().unwrap_or(1.0)
-            });
-            (
-                file.layout(),
-                (t, None),
-                ([g(0), g(1), g(2), g(3)], g_elongation, term.is_some()),
-                true,
-            )
+            let (gains, g_elongation, term) = calibrated_gains(&file.model(), &file.features);
+            (file.layout(), (t, None), (gains, g_elongation, term), true)
         }
         MapSource::Nominal {
             thickness_mm,
@@ -221,7 +192,7 @@ pub fn write_maps(
             misfit_um: m.misfit_mm * 1e3,
         };
         let mut frame_gains = gains;
-        frame_gains[2] += g_elongation * super::gather::elongation_of(f.contact.as_ref());
+        frame_gains[2] = fz_gain(gains, g_elongation, f.contact.as_ref());
         let svg = picture(
             &m,
             &layout,
@@ -239,6 +210,42 @@ pub fn write_maps(
     csv.flush()
         .map_err(|e| werr(dir.join("traction.csv"), e.to_string()))?;
     Ok(rows)
+}
+
+/// From the map's integrals at the nominal modulus to the calibrated reading, per channel
+/// (∂F_c/∂F̃_c: the model's own-channel weight over its feature scale), with the elongation
+/// term's weight on F̃_z over its scale, and whether the model has that term (`features`
+/// the sensor file's).
+fn calibrated_gains(model: &LinearModel, features: &[String]) -> ([f64; 4], f64, bool) {
+    let g = |c: usize| {
+        model
+            .channels
+            .get(c)
+            .and_then(|ch| ch.weights.get(c))
+            .copied()
+            .unwrap_or(1.0)
+            / model.scale.get(c).copied().unwrap_or(1.0)
+    };
+    let term = features
+        .iter()
+        .position(|f| f == analysis::force_sensor::ELONGATION_FEATURE);
+    let g_elongation = term.map_or(0.0, |j| {
+        model
+            .channels
+            .get(2)
+            .and_then(|ch| ch.weights.get(j))
+            .copied()
+            .unwrap_or(0.0)
+            / model.scale.get(j).copied().unwrap_or(1.0)
+    });
+    ([g(0), g(1), g(2), g(3)], g_elongation, term.is_some())
+}
+
+/// The picture's gain on the normal traction of a frame with contact `region`: with the
+/// elongation term Fz also moves with the map's Fz through it, by the frame's elongation,
+/// ∂F_z/∂F̃_z = g(2) + e·(its weight over its scale).
+fn fz_gain(gains: [f64; 4], g_elongation: f64, region: Option<&super::history::Region>) -> f64 {
+    gains[2] + g_elongation * super::gather::elongation_of(region)
 }
 
 /// The map as SVG: cells coloured by normal traction (white → red, compressive), arrows of
@@ -353,4 +360,72 @@ fn picture(
     }
     out.push_str("</svg>\n");
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use analysis::force_sensor::ridge::ChannelFit;
+    use analysis::force_sensor::{TRACTION_FEATURES, TRACTION_FEATURES_ROUND};
+
+    fn channel(weights: Vec<f64>) -> ChannelFit {
+        let p = weights.len();
+        ChannelFit {
+            weights,
+            bias: 0.3,
+            lambda: 0.0,
+            sigma: 0.1,
+            inv_gram: vec![0.0; p * p],
+            dof: p as f64,
+        }
+    }
+
+    /// The picture's Fz gain is the model's own: moving the map's F̃_z by δ (and with it
+    /// the elongation term, F̃_z·e) moves the reading by δ times the gain, for a round and
+    /// an elongated contact, with and without the term.
+    #[test]
+    fn the_pictures_fz_gain_is_the_models_derivative() {
+        let names: Vec<String> = TRACTION_FEATURES.iter().map(|f| f.to_string()).collect();
+        let model = LinearModel {
+            mean: vec![0.01, -0.02, 0.5, 3.0, 0.2],
+            scale: vec![0.2, 0.3, 1.7, 9.0, 0.6],
+            samples: 100,
+            channels: vec![
+                channel(vec![0.9, 0.0, 0.0, 0.0, 0.0]),
+                channel(vec![0.0, 0.8, 0.0, 0.0, 0.0]),
+                channel(vec![0.0, 0.0, 4.1, 0.0, -1.3]),
+                channel(vec![0.0, 0.0, 0.0, 2.2, 0.0]),
+            ],
+        };
+        let (gains, g_e, term) = calibrated_gains(&model, &names);
+        assert!(term);
+        // A strip 20 × 4 (moments w²/12, h²/12): e = 0.96; a disc: e = 0.
+        let strip = super::super::history::Region {
+            centroid_px: [320.0, 240.0],
+            radius_px: 5.0,
+            second_moments_px2: Some([400.0 / 12.0, 16.0 / 12.0, 0.0]),
+        };
+        let disc = super::super::history::Region::disc([320.0, 240.0], 5.0);
+        for (region, e) in [(Some(&strip), 0.96), (Some(&disc), 0.0), (None, 0.0)] {
+            let at = |fz: f64| {
+                let f = [0.02, 0.01, fz, 2.0, fz * e];
+                model.predict(&f).0[2]
+            };
+            let (fz, d) = (1.4, 0.05);
+            let want = (at(fz + d) - at(fz)) / d;
+            let got = fz_gain(gains, g_e, region);
+            assert!((got - want).abs() < 1e-9, "e {e}: {got} vs {want}");
+        }
+        assert!((gains[2] - 4.1 / 1.7).abs() < 1e-12);
+        assert!((g_e + 1.3 / 0.6).abs() < 1e-12);
+        // A round sensor's file has no term: its gain is the Fz weight alone.
+        let round: Vec<String> = TRACTION_FEATURES_ROUND
+            .iter()
+            .map(|f| f.to_string())
+            .collect();
+        let (g4, g_e4, term4) = calibrated_gains(&model, &round);
+        assert!(!term4);
+        assert_eq!(g_e4, 0.0);
+        assert_eq!(fz_gain(g4, g_e4, Some(&strip)), g4[2]);
+    }
 }

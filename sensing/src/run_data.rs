@@ -139,10 +139,10 @@ fn read(dir: &Path, with_markers: bool) -> Result<RunData, RunDirError> {
 }
 
 /// Tracks the run's frames into `markers.csv` and `contact.csv`: written in a folder of this
-/// process's own and renamed into place when complete, so a second report or calibration
+/// call's own and renamed into place when complete, so a second report or calibration
 /// reading the same run meanwhile never sees a half-written table.
 fn track_into_place(dir: &Path) -> Result<(), RunDirError> {
-    let work = dir.join(format!(".tracking-{}", std::process::id()));
+    let work = dir.join(work_folder_name());
     let err = |path: PathBuf, detail: String| RunDirError::Missing { path, detail };
     std::fs::create_dir_all(&work).map_err(|e| err(work.clone(), e.to_string()))?;
     let markers = work.join(rundir::names::MARKERS);
@@ -171,6 +171,16 @@ fn track_into_place(dir: &Path) -> Result<(), RunDirError> {
     placed
 }
 
+/// A work folder's name no other call shares: the process and a count within it. The
+/// process alone was not enough: two threads of one process (a Python user's pool, two tests)
+/// tracking the same run at once wrote into one folder, and the first to finish removed the
+/// other's half-written tables.
+fn work_folder_name() -> String {
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    format!(".tracking-{}-{n}", std::process::id())
+}
+
 fn first_frame_size(dir: &Path) -> Option<(usize, usize)> {
     let rows: Vec<BTreeMap<String, String>> = read_csv(&dir.join(rundir::names::FRAMES)).ok()?;
     let file = rows.first()?.get("file")?;
@@ -197,5 +207,20 @@ pub fn field_of_rows(rows: &[MarkerRow]) -> MarkerField {
             .iter()
             .map(|m| m.state == "tracked" || m.state == "merged")
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn two_calls_of_one_process_track_in_two_folders() {
+        let names: Vec<String> = std::thread::scope(|s| {
+            let a = s.spawn(super::work_folder_name);
+            let b = s.spawn(super::work_folder_name);
+            [a, b].map(|h| h.join().unwrap_or_default()).to_vec()
+        });
+        let pid = format!(".tracking-{}-", std::process::id());
+        assert!(names.iter().all(|n| n.starts_with(&pid)), "{names:?}");
+        assert_ne!(names[0], names[1]);
     }
 }

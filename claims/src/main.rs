@@ -6,7 +6,8 @@
 //!
 //! ```text
 //! cargo run -p claims                 # the ledger against the text and the tests
-//! cargo run -p claims -- --quick      # and re-measure the cheap figures (CI)
+//! cargo run -p claims -- --quick      # and re-measure the cheap figures
+//! cargo run -p claims -- --quick --test-profile   # the same on `cargo test`'s build (CI)
 //! cargo run --release -p claims -- --all --write docs/benchmarks/claims.md
 //! ```
 //!
@@ -35,6 +36,11 @@ struct Args {
     /// Re-measure the claims marked `quick` (seconds each).
     #[arg(long, conflicts_with = "all")]
     quick: bool,
+    /// Measure with the test profile's build (`target/debug`, what `cargo test` has built)
+    /// instead of a release build: for CI, whose `--quick` figures do not depend on the
+    /// build's speed and are the same in either profile.
+    #[arg(long, conflicts_with = "all")]
+    test_profile: bool,
     /// Re-measure every claim that has a command (tens of minutes).
     #[arg(long)]
     all: bool,
@@ -100,7 +106,7 @@ fn run(args: Args) -> Result<bool> {
         })
         .collect();
     let mut rows = Vec::new();
-    let mut runner = measure::Runner::new(&root);
+    let mut runner = measure::Runner::new(&root, args.test_profile);
     for c in chosen {
         let Some(m) = &c.measure else { continue };
         println!("measuring {} …", c.id);

@@ -23,13 +23,17 @@ pub(crate) struct Measured {
 /// command (a table's rows) share its run.
 pub(crate) struct Runner {
     root: PathBuf,
+    test_profile: bool,
     done: HashMap<String, (std::result::Result<String, String>, PathBuf, f64)>,
 }
 
 impl Runner {
-    pub(crate) fn new(root: &Path) -> Self {
+    /// With `test_profile`, each command builds and runs what `cargo test` builds
+    /// ([`in_test_profile`]) instead of a release build.
+    pub(crate) fn new(root: &Path, test_profile: bool) -> Self {
         Self {
             root: root.to_path_buf(),
+            test_profile,
             done: HashMap::new(),
         }
     }
@@ -38,10 +42,15 @@ impl Runner {
     pub(crate) fn run(&mut self, id: &str, m: &Measure) -> Measured {
         let key = format!("{}\n{:?}", m.command, m.timeout_s);
         let root = self.root.clone();
+        let command = if self.test_profile {
+            in_test_profile(&m.command)
+        } else {
+            m.command.clone()
+        };
         let (text, log, seconds) = self.done.entry(key).or_insert_with(|| {
             let log = root.join("target/claims").join(format!("{id}.log"));
             let started = Instant::now();
-            let text = run_logged(m, &root, &log).map_err(|e| format!("{e:#}"));
+            let text = run_logged(&command, m.timeout_s, &root, &log).map_err(|e| format!("{e:#}"));
             (text, log, started.elapsed().as_secs_f64())
         });
         let value = match text {
@@ -56,22 +65,33 @@ impl Runner {
     }
 }
 
-fn run_logged(m: &Measure, root: &Path, log: &Path) -> Result<String> {
+/// `command` building and running the test profile's artefacts (`target/debug`, which
+/// `cargo test` has built) instead of release ones: `--release` dropped, `target/release/`
+/// read as `target/debug/`. For figures that do not depend on the build's speed (the
+/// `quick` ones): Rust's floating point is the same at every optimisation level, so the
+/// figure is the same and CI does not compile the workspace a second time to get it.
+pub(crate) fn in_test_profile(command: &str) -> String {
+    command
+        .replace(" --release", "")
+        .replace("target/release/", "target/debug/")
+}
+
+fn run_logged(command: &str, timeout_s: Option<u64>, root: &Path, log: &Path) -> Result<String> {
     if let Some(dir) = log.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
     }
     let out = std::fs::File::create(log).with_context(|| format!("{}", log.display()))?;
     let err = out.try_clone()?;
     let mut child = Command::new("sh")
-        .args(["-c", &m.command])
+        .args(["-c", command])
         .current_dir(root)
         .stdin(Stdio::null())
         .stdout(out)
         .stderr(err)
         .process_group(0)
         .spawn()
-        .with_context(|| format!("cannot start `{}`", m.command))?;
-    let limit = Duration::from_secs(m.timeout_s.unwrap_or(1800));
+        .with_context(|| format!("cannot start `{command}`"))?;
+    let limit = Duration::from_secs(timeout_s.unwrap_or(1800));
     let started = Instant::now();
     let status = loop {
         if let Some(status) = child.try_wait()? {
@@ -89,7 +109,7 @@ fn run_logged(m: &Measure, root: &Path, log: &Path) -> Result<String> {
             let _ = child.wait();
             bail!(
                 "`{}` did not finish within {} s (see {})",
-                m.command,
+                command,
                 limit.as_secs(),
                 log.display()
             );
@@ -98,7 +118,7 @@ fn run_logged(m: &Measure, root: &Path, log: &Path) -> Result<String> {
     };
     let text = std::fs::read_to_string(log).unwrap_or_default();
     if !status.success() {
-        bail!("`{}` failed ({status}; see {})", m.command, log.display());
+        bail!("`{command}` failed ({status}; see {})", log.display());
     }
     Ok(text)
 }
@@ -137,6 +157,16 @@ mod tests {
     }
 
     #[test]
+    fn the_test_profile_reads_debug_artefacts_and_builds_nothing_in_release() {
+        let c = "cargo build --release -p gelrig && ./target/release/gelrig run x && cargo test -q --release -p shape --test t";
+        assert_eq!(
+            in_test_profile(c),
+            "cargo build -p gelrig && ./target/debug/gelrig run x && cargo test -q -p shape --test t"
+        );
+        assert_eq!(in_test_profile("echo 1"), "echo 1");
+    }
+
+    #[test]
     fn the_last_match_is_the_result() {
         let m = measure("", r"worst ([−0-9.]+)");
         let v = extract(&m, "worst 0.5\nworst −0.0012\n").expect("in a test");
@@ -148,7 +178,7 @@ mod tests {
     fn a_command_that_fails_or_hangs_is_an_error_naming_it() {
         let root = std::env::temp_dir().join(format!("claims-run-{}", std::process::id()));
         std::fs::create_dir_all(&root).expect("in a test");
-        let mut runner = Runner::new(&root);
+        let mut runner = Runner::new(&root, false);
         let ok = runner.run("ok", &measure("echo worst 0.25", r"worst ([0-9.]+)"));
         assert_eq!(ok.value.expect("in a test"), 25.0);
         let failed = runner.run("failed", &measure("exit 3", "x"));

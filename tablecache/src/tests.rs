@@ -10,7 +10,9 @@ use std::sync::OnceLock;
 
 /// The box gel (its shipped layer and material) under a 12.68 mm sphere, shear and a field view: a curved indenter pressed
 /// with friction, so every kind of entry is solved (normal, pressed states, tangential
-/// tables, pressing tractions, field pressures).
+/// tables, pressing tractions, field pressures). At a coarse curved grid and loading path and
+/// a 0.1 mm range: the cache's promises do not depend on resolution, and every test solves
+/// this model at least once.
 fn spec() -> ModelSpec {
     let contact = Contact::new(
         presets::BOX_LAYER,
@@ -20,13 +22,15 @@ fn spec() -> ModelSpec {
     .expect("valid contact");
     ModelSpec {
         contact,
-        max_depth_mm: 0.5,
+        max_depth_mm: 0.1,
         shear: true,
         twist: false,
         field_view_mm: Some((12.0, 9.0)),
         pressing_friction: true,
         quality: Quality {
-            field_cells: 64,
+            cells_curved: 8,
+            field_cells: 32,
+            path_steps: 4,
             ..Quality::default()
         },
     }
@@ -38,7 +42,7 @@ fn readings(store: Option<Arc<dyn TableStore>>) -> Vec<u64> {
     let mut out = Vec::new();
     // On a bucket (0.5 % of the 4.2 mm layer is 0.021 mm): one bucket of each table.
     {
-        let d = 0.42;
+        let d = 0.084;
         out.push(m.normal_force_n(d).to_bits());
         out.push(m.contact_radius_mm(d).to_bits());
         let (b, stick) = m.shear_curve(d).expect("shear built");
@@ -191,7 +195,7 @@ fn past_its_limit_the_cache_drops_the_least_recently_used_entries() {
     let small = disk(tmp.path(), limit);
     // Another spec's entry (another depth range) triggers the trim.
     let mut other = spec();
-    other.max_depth_mm = 0.45;
+    other.max_depth_mm = 0.09;
     ContactModel::build_stored(other, Some(small.clone() as Arc<dyn TableStore>)).expect("builds");
     let after = small.usage().expect("usage");
     assert!(after.bytes <= limit, "{after:?} within {limit}");

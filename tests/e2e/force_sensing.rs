@@ -205,7 +205,7 @@ fn a_sensor_file_is_refused_where_it_does_not_belong() {
     let path = tmp.path().join("portable.yaml");
     portable_sensor().write(&path).unwrap();
     // Another gel (the box sensor's grid) is another marker layout.
-    let box_run = dry("box-normal-flat", 1, &tmp.path().join("box"));
+    let box_run = shared_dry_run("box-normal-flat");
     let o = Command::new(gelrig())
         .arg("report")
         .arg(&box_run)
@@ -283,7 +283,7 @@ fn the_traction_map_reads_unseen_punches_within_five_percent() {
     let tmp = tempfile::tempdir().unwrap();
     let runs: Vec<PathBuf> = ["box-normal-flat", "box-normal-sphere", "box-shear-flat"]
         .iter()
-        .map(|n| dry(n, 1, &tmp.path().join("cal")))
+        .map(|n| shared_dry_run(n))
         .collect();
     let opts = sensing::sensor::calibrate::CalibrateOptions {
         method: Some(sensing::sensor::calibrate::Method::Traction),

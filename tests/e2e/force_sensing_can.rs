@@ -243,14 +243,10 @@ fn a_grasp_calibrated_in_its_jig_reads_the_relaxing_squeeze() {
 /// 4.8 N and the hold's 2.1 N).
 #[test]
 fn a_symmetric_sensor_keeps_the_cans_twist_out_of_the_squeeze() {
-    let tmp = tempfile::tempdir().unwrap();
     let runs = portable_runs();
     let symmetric = symmetric_sensor(&runs);
-    let text = crate::support::shipped_text("lifting-can").replace("times: 10", "times: 1");
-    let loaded = crate::support::load_text(tmp.path(), &text).unwrap();
-    let (o, _) = run_virtual(&loaded, tmp.path(), 2, None);
-    assert_eq!(o.status, rundir::write::Status::Completed);
-    let steps = csv_rows(&o.dir.join("steps.csv"));
+    let can = crate::support::shared_one_trial_can(2);
+    let steps = csv_rows(&can.join("steps.csv"));
     let step_of = |label: &str| -> u32 {
         steps.iter().find(|s| s["label"] == label).unwrap()["step"]
             .parse()
@@ -259,7 +255,7 @@ fn a_symmetric_sensor_keeps_the_cans_twist_out_of_the_squeeze() {
     // A step's Fz: its median, and the spread of its middle 80 % (10th to 90th percentile).
     let fz_of = |s: &SensorFile, label: &str| {
         let step = step_of(label);
-        let mut v: Vec<f64> = sensing::sensor::read_wrench(s, &o.dir)
+        let mut v: Vec<f64> = sensing::sensor::read_wrench(s, &can)
             .unwrap()
             .iter()
             .filter(|r| r.step == step)
@@ -314,19 +310,11 @@ fn calibrated_on_flat_and_sphere_runs_the_sensor_reads_the_unseen_can() {
     let tmp = tempfile::tempdir().unwrap();
     let mut runs = portable_runs();
     runs.push(shared_dry_run("portable-normal-sphere"));
-    let text = crate::support::shipped_text("lifting-can").replace("times: 10", "times: 1");
-    let loaded = crate::support::load_text(tmp.path(), &text).unwrap();
-    let (can, _) = run_virtual(&loaded, tmp.path(), 2, None);
-    assert_eq!(can.status, rundir::write::Status::Completed);
+    let can = crate::support::shared_one_trial_can(2);
     let fz_pct = |s: &SensorFile, what: &str| {
         let path = tmp.path().join(format!("{what}.yaml"));
         s.write(&path).unwrap();
-        reported_fz_pct(
-            &can.dir,
-            s,
-            &path,
-            &tmp.path().join(format!("report-{what}")),
-        )
+        reported_fz_pct(&can, s, &path, &tmp.path().join(format!("report-{what}")))
     };
     let traction = calibrate(
         &runs,

@@ -185,10 +185,7 @@ fn an_unseen_can_reads_within_two_stated_uncertainties_and_says_it_is_unseen() {
     .iter()
     .map(|n| shared_dry_run(n))
     .collect();
-    let text = crate::support::shipped_text("lifting-can").replace("times: 10", "times: 1");
-    let loaded = crate::support::load_text(tmp.path(), &text).unwrap();
-    let (can, _) = run_virtual(&loaded, tmp.path(), 3, None);
-    assert_eq!(can.status, rundir::write::Status::Completed);
+    let can = crate::support::shared_one_trial_can(3);
     let default = calibrate(&runs, &CalibrateOptions::default()).unwrap();
     let moments = calibrate(
         &runs,
@@ -259,7 +256,7 @@ fn an_unseen_can_reads_within_two_stated_uncertainties_and_says_it_is_unseen() {
         ("moments --symmetric", &moments),
         ("default, with the dowel", &dowel),
     ] {
-        let frames = can_frames(sensor, &can.dir);
+        let frames = can_frames(sensor, &can);
         assert!(frames.len() > 200, "{name}: {} loaded frames", frames.len());
         let within = frames
             .iter()

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use sensing::material::MaterialFile;
 
 use crate::support::{
-    csv_rows, gelrig, load_text, root, run_virtual, shared_dry_run, shipped_text,
+    csv_rows, dry_text as dry, gelrig, load_text, root, shared_dry_run, shipped_text,
 };
 
 /// The source gel: none of the presets' values.
@@ -20,19 +20,6 @@ fn with_sensor(name: &str, sensor: &str) -> String {
     let edited = text.replace("sensor: {kind: portable}", sensor);
     assert_ne!(edited, text, "{name}'s sensor line changed");
     edited
-}
-
-fn dry(dir: &Path, text: &str, seed: u64) -> PathBuf {
-    std::fs::create_dir_all(dir).unwrap();
-    let loaded = load_text(dir, text).unwrap_or_else(|d| panic!("{}", d[0]));
-    let (o, _) = run_virtual(&loaded, dir, seed, None);
-    assert_eq!(
-        o.status,
-        rundir::write::Status::Completed,
-        "{:?}",
-        o.message
-    );
-    o.dir
 }
 
 fn within(got: f64, want: f64, rel: f64, what: &str) {

@@ -165,6 +165,11 @@ pub(crate) fn run_virtual(
 /// target's test scratch space. A static is never dropped, so a temporary directory there
 /// would outlive the process (1.4 GB of runs each time); instead the directories of
 /// processes that have ended are removed when the next one starts.
+fn process_root() -> &'static Path {
+    static ROOT: OnceLock<PathBuf> = OnceLock::new();
+    ROOT.get_or_init(shared_runs_root)
+}
+
 fn shared_runs_root() -> PathBuf {
     let base = Path::new(env!("CARGO_TARGET_TMPDIR")).join("shared-dry-runs");
     if let Ok(entries) = std::fs::read_dir(&base) {
@@ -185,30 +190,72 @@ fn shared_runs_root() -> PathBuf {
 }
 
 /// The run directory of a shipped protocol dry-run once per test process (seed 1),
-/// shared by every test that only reads it.
+/// shared by every test that only reads it (`every_shipped_protocol_dry_runs_to_completion`
+/// runs all of them through here, so the others find theirs done). Each protocol has its own
+/// lock: two tests wanting two protocols run them side by side; two wanting one wait for
+/// one run.
 pub(crate) fn shared_dry_run(name: &str) -> PathBuf {
-    static RUNS: OnceLock<std::sync::Mutex<std::collections::BTreeMap<String, PathBuf>>> =
+    type Cell = std::sync::Arc<OnceLock<PathBuf>>;
+    static RUNS: OnceLock<std::sync::Mutex<std::collections::BTreeMap<String, Cell>>> =
         OnceLock::new();
-    static ROOT: OnceLock<PathBuf> = OnceLock::new();
-    let root = ROOT.get_or_init(shared_runs_root);
-    let runs = RUNS.get_or_init(Default::default);
-    let mut map = runs
+    let cell = RUNS
+        .get_or_init(Default::default)
         .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    if let Some(dir) = map.get(name) {
-        return dir.clone();
-    }
-    let loaded = load_ok(&protocol(name));
-    let out = root.join(name);
-    let (outcome, _) = run_virtual(&loaded, &out, 1, None);
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .entry(name.to_string())
+        .or_default()
+        .clone();
+    cell.get_or_init(|| {
+        let loaded = load_ok(&protocol(name));
+        let out = process_root().join(name);
+        let (outcome, _) = run_virtual(&loaded, &out, 1, None);
+        assert_eq!(
+            outcome.status,
+            rundir::write::Status::Completed,
+            "{name}: {:?}",
+            outcome.message
+        );
+        outcome.dir
+    })
+    .clone()
+}
+
+/// A one-trial `lifting-can` run of `seed`, once per test process, shared by the tests that
+/// only read it (or track it in place), as [`shared_dry_run`] is.
+pub(crate) fn shared_one_trial_can(seed: u64) -> PathBuf {
+    type Cell = std::sync::Arc<OnceLock<PathBuf>>;
+    static RUNS: OnceLock<std::sync::Mutex<std::collections::BTreeMap<u64, Cell>>> =
+        OnceLock::new();
+    let cell = RUNS
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .entry(seed)
+        .or_default()
+        .clone();
+    cell.get_or_init(|| {
+        let text = shipped_text("lifting-can").replace("times: 10", "times: 1");
+        dry_text(
+            &process_root().join(format!("one-trial-can-seed-{seed}")),
+            &text,
+            seed,
+        )
+    })
+    .clone()
+}
+
+/// A protocol's text dry-run into `dir` (made if missing) on `seed`, to completion.
+pub(crate) fn dry_text(dir: &Path, text: &str, seed: u64) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let loaded = load_text(dir, text).unwrap_or_else(|d| panic!("{}", d[0]));
+    let (o, _) = run_virtual(&loaded, dir, seed, None);
     assert_eq!(
-        outcome.status,
+        o.status,
         rundir::write::Status::Completed,
-        "{name}: {:?}",
-        outcome.message
+        "{:?}",
+        o.message
     );
-    map.insert(name.to_string(), outcome.dir.clone());
-    outcome.dir
+    o.dir
 }
 
 /// Rows of a CSV file as maps from column to text.

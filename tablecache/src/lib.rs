@@ -9,9 +9,11 @@
 //!   name, and carries the SHA-256 of its payload. A file that is truncated, damaged, of
 //!   another format or for another key is deleted and the table solved again — never used.
 //! - **Concurrent runs**: each entry is written to a temporary file in the same folder and
-//!   renamed into place (atomic on POSIX), so a reader sees a whole entry or none; two runs
-//!   solving the same entry write the same bytes. Eviction holds an exclusive lock
-//!   (`.lock`), and a reader that loses a file to it solves the table again.
+//!   renamed into place (atomic on POSIX), so a reader sees a whole entry or none. A run
+//!   that misses an entry takes its build lock first, so a second run missing it meanwhile
+//!   waits and reads it rather than solving it too ([`building`]); where two runs do solve
+//!   one entry, they write the same bytes. Eviction holds an exclusive lock (`.lock`), and
+//!   a reader that loses a file to it solves the table again.
 //! - **Bounded**: past the size limit (2 GiB unless `GELRIG_CACHE_MAX_MB` says otherwise)
 //!   the least recently used entries are deleted (a read refreshes an entry's time).
 //! - **Where**: `$GELRIG_CACHE_DIR`, else `$XDG_CACHE_HOME/gelrig`, else
@@ -20,11 +22,12 @@
 //! A cache that cannot be written (a full disk, a read-only folder) never fails a run: the
 //! first failure stops further writes and is kept for the run to report ([`problems`]).
 
+mod building;
 mod entry;
 mod evict;
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use mechanics::response::{TableEntry, TableStore};
@@ -60,6 +63,10 @@ pub struct DiskTables {
     /// Cleared at the first write that fails: the folder is not written again.
     writable: AtomicBool,
     problems: Mutex<Vec<String>>,
+    /// The entries this process is solving ([`building`]).
+    building: building::Building,
+    /// Entries written by this instance.
+    written: AtomicU64,
 }
 
 impl DiskTables {
@@ -71,6 +78,8 @@ impl DiskTables {
             machine: machine(),
             writable: AtomicBool::new(true),
             problems: Mutex::new(Vec::new()),
+            building: building::Building::default(),
+            written: AtomicU64::new(0),
         }
     }
 
@@ -108,6 +117,11 @@ impl DiskTables {
         evict::clear(&self.dir, &self.entries_dir())
     }
 
+    /// Entries this instance has written (each one a table it solved).
+    pub fn entries_written(&self) -> u64 {
+        self.written.load(Ordering::Relaxed)
+    }
+
     /// Failures to write since the last call (each once), for the run to report.
     pub fn take_problems(&self) -> Vec<String> {
         self.problems
@@ -135,29 +149,58 @@ impl DiskTables {
 
 impl TableStore for DiskTables {
     fn load(&self, model: &str, name: &str) -> Option<TableEntry> {
-        entry::read(&self.path_of(model, name), model, name)
+        let path = self.path_of(model, name);
+        if let Some(t) = entry::read(&path, model, name) {
+            return Some(t);
+        }
+        // Missed: become its builder, or wait for the one building it and read theirs.
+        if !self.writable.load(Ordering::Relaxed) || !self.building.acquire(&path) {
+            return None;
+        }
+        let t = entry::read(&path, model, name);
+        if t.is_some() {
+            self.building.release(&path);
+        }
+        t
     }
 
     fn save(&self, model: &str, name: &str, table: &TableEntry) {
+        let path = self.path_of(model, name);
+        let written = self.write(model, name, &path, table);
+        // Written or not, waiters may go on (to read it, or to solve it themselves).
+        self.building.release(&path);
+        if written {
+            self.written.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+impl DiskTables {
+    /// Writes one entry and keeps the cache within its bound; whether it was written.
+    fn write(&self, model: &str, name: &str, path: &Path, table: &TableEntry) -> bool {
         if !self.writable.load(Ordering::Relaxed) {
-            return;
+            return false;
         }
         let dir = self.entries_dir();
         let written = std::fs::create_dir_all(&dir)
-            .and_then(|()| entry::write(&dir, &self.path_of(model, name), model, name, table));
+            .and_then(|()| entry::write(&dir, path, model, name, table));
         match written {
             Ok(()) => {
                 if let Err(e) = evict::trim(&self.dir, &dir, self.max_bytes) {
                     self.note(e.to_string());
                 }
+                true
             }
-            Err(e) => self.note(
-                CacheError::Io {
-                    path: dir,
-                    source: e,
-                }
-                .to_string(),
-            ),
+            Err(e) => {
+                self.note(
+                    CacheError::Io {
+                        path: dir,
+                        source: e,
+                    }
+                    .to_string(),
+                );
+                false
+            }
         }
     }
 }

@@ -152,27 +152,37 @@ fn a_damaged_truncated_or_foreign_entry_is_never_used_and_is_solved_again() {
 }
 
 #[test]
-fn concurrent_builders_share_one_folder_and_agree() {
+fn concurrent_builders_share_one_folder_and_agree_and_solve_each_table_once() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let reference = reference();
     let dir = tmp.path().to_path_buf();
+    // Three builders of their own (as three runs would be), started together on an empty
+    // folder: without build locks each would solve every table.
     let runs: Vec<_> = (0..3)
         .map(|_| {
             let dir = dir.clone();
             std::thread::spawn(move || {
                 let d = disk(&dir, DEFAULT_MAX_BYTES);
                 let r = readings(Some(d.clone()));
-                (r, d.take_problems())
+                (r, d.take_problems(), d.entries_written())
             })
         })
         .collect();
+    let mut written = 0;
     for r in runs {
-        let (r, problems) = r.join().expect("builder thread");
+        let (r, problems, w) = r.join().expect("builder thread");
         assert_eq!(r, reference);
         assert!(problems.is_empty(), "{problems:?}");
+        written += w;
     }
     let d = disk(&dir, DEFAULT_MAX_BYTES);
-    assert_eq!(readings(Some(d)), reference);
+    let files = entry_files(&d).len() as u64;
+    assert_eq!(
+        written, files,
+        "each of the {files} entries solved and written by one builder only"
+    );
+    assert_eq!(readings(Some(d.clone())), reference);
+    assert_eq!(d.entries_written(), 0, "a later model reads every entry");
 }
 
 #[test]

@@ -120,5 +120,14 @@ pub(crate) fn clear(dir: &Path, entries: &Path) -> Result<Usage, CacheError> {
             Err(e) => return Err(io(&k.path)(e)),
         }
     }
+    // And the entries' empty build-lock files (`building`): one a run holds now only costs
+    // a second builder of its table.
+    if let Ok(rd) = std::fs::read_dir(entries) {
+        for e in rd.flatten() {
+            if e.path().extension().is_some_and(|x| x == "building") {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
     Ok(gone)
 }

@@ -214,6 +214,15 @@ fn past_its_limit_the_cache_drops_the_least_recently_used_entries() {
     let gone = small.clear().expect("clear");
     assert_eq!(gone, after);
     assert_eq!(small.usage().expect("usage"), Usage::default());
+    let left: Vec<_> = std::fs::read_dir(small.entries_dir())
+        .expect("entries folder")
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    assert!(
+        left.is_empty(),
+        "nothing left behind, build locks included: {left:?}"
+    );
 }
 
 #[test]

@@ -57,12 +57,7 @@ impl Building {
         if std::fs::create_dir_all(dir).is_err() {
             return false;
         }
-        let Ok(file) = std::fs::OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(lock_path(entry))
-        else {
+        let Ok(file) = crate::evict::open_lock(&lock_path(entry)) else {
             return false;
         };
         let start = Instant::now();

@@ -63,12 +63,17 @@ pub(crate) fn usage(entries: &Path) -> Result<Usage, CacheError> {
 /// Opens (creating) the folder's lock file.
 fn lock_file(dir: &Path) -> Result<std::fs::File, CacheError> {
     let p = dir.join(".lock");
+    open_lock(&p).map_err(io(&p))
+}
+
+/// Opens (creating, never truncating) a file to hold an advisory lock on: the folder's
+/// `.lock`, or an entry's build lock ([`crate::building`]).
+pub(crate) fn open_lock(path: &Path) -> std::io::Result<std::fs::File> {
     std::fs::OpenOptions::new()
         .create(true)
         .truncate(false)
         .write(true)
-        .open(&p)
-        .map_err(io(&p))
+        .open(path)
 }
 
 /// Deletes the least recently used entries until the cache is at most 90 % of

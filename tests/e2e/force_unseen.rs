@@ -132,9 +132,19 @@ fn a_single_indenter_says_its_unseen_shape_error_is_unknown() {
     );
 }
 
-/// The can's frames: Fz and its standard uncertainty as read, the Nano17's Fz over the
-/// frame's ±60 ms, and the step's label; frames where the Nano17 reads 0.5 N or more.
-fn can_frames(sensor: &SensorFile, dir: &Path) -> Vec<(f64, f64, f64, String, String)> {
+/// One loaded frame of a can run, read by a sensor file beside the Nano17.
+struct CanFrame {
+    fz_n: f64,
+    fz_sd_n: f64,
+    /// The Nano17's Fz over the frame's ±60 ms.
+    nano_fz_n: f64,
+    label: String,
+    trial: String,
+    outside_calibration: String,
+}
+
+/// The can's frames where the Nano17 reads 0.5 N or more.
+fn can_frames(sensor: &SensorFile, dir: &Path) -> Vec<CanFrame> {
     let rows = read_wrench(sensor, dir).unwrap();
     let force = csv_rows(&dir.join("force.csv"));
     let t: Vec<u64> = force.iter().map(|r| r["t_ns"].parse().unwrap()).collect();
@@ -150,22 +160,35 @@ fn can_frames(sensor: &SensorFile, dir: &Path) -> Vec<(f64, f64, f64, String, St
             if hi <= lo {
                 return None;
             }
-            let nano = fz[lo..hi].iter().sum::<f64>() / (hi - lo) as f64;
-            let label = steps
+            let nano_fz_n = fz[lo..hi].iter().sum::<f64>() / (hi - lo) as f64;
+            let step = steps
                 .iter()
-                .find(|s| s["step"].parse::<u32>().ok() == Some(r.step))
-                .map_or(String::new(), |s| s["label"].clone());
-            (nano >= 0.5).then(|| {
-                (
-                    r.fz_n,
-                    r.fz_sd_n,
-                    nano,
-                    label,
-                    r.outside_calibration.clone(),
-                )
+                .find(|s| s["step"].parse::<u32>().ok() == Some(r.step));
+            let (label, trial) = step.map_or_else(Default::default, |s| {
+                (s["label"].clone(), s["trial"].clone())
+            });
+            (nano_fz_n >= 0.5).then(|| CanFrame {
+                fz_n: r.fz_n,
+                fz_sd_n: r.fz_sd_n,
+                nano_fz_n,
+                label,
+                trial,
+                outside_calibration: r.outside_calibration.clone(),
             })
         })
         .collect()
+}
+
+/// The hold's squeeze as read over the Nano17's: the ratio of the medians, over the hold
+/// frames of `trial` (every trial's where `None`).
+fn hold_ratio(frames: &[CanFrame], trial: Option<&str>) -> f64 {
+    let hold: Vec<&CanFrame> = frames
+        .iter()
+        .filter(|f| f.label == "hold" && trial.is_none_or(|t| f.trial == t))
+        .collect();
+    assert!(!hold.is_empty(), "no hold frames in trial {trial:?}");
+    median(hold.iter().map(|f| f.fz_n).collect())
+        / median(hold.iter().map(|f| f.nano_fz_n).collect())
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -251,52 +274,65 @@ fn an_unseen_can_reads_within_two_stated_uncertainties_and_says_it_is_unseen() {
         .unwrap_err()
         .to_string();
     assert!(refused.contains("came with version 5"), "{refused}");
-    for (name, sensor) in [
-        ("default", &default),
-        ("moments --symmetric", &moments),
-        ("default, with the dowel", &dowel),
+    // The dowel's calibration reads two trials: on seed 3 the second trial's hold is where
+    // the can read high (1.120 of the Nano17's with the dowel pressed in 0.10 mm steps,
+    // against 1.067 in the first; ten trials 1.112) — its contact region runs longer there.
+    let two_trials = crate::support::shared_can(2, 3);
+    for (name, sensor, can) in [
+        ("default", &default, &can),
+        ("moments --symmetric", &moments, &can),
+        ("default, with the dowel", &dowel, &two_trials),
     ] {
-        let frames = can_frames(sensor, &can);
+        let frames = can_frames(sensor, can);
         assert!(frames.len() > 200, "{name}: {} loaded frames", frames.len());
         let within = frames
             .iter()
-            .filter(|(v, sd, nano, _, _)| (v - nano).abs() <= 2.0 * sd)
+            .filter(|f| (f.fz_n - f.nano_fz_n).abs() <= 2.0 * f.fz_sd_n)
             .count() as f64
             / frames.len() as f64;
-        let hold: Vec<(f64, f64)> = frames
-            .iter()
-            .filter(|f| f.3 == "hold")
-            .map(|f| (f.0, f.2))
-            .collect();
-        let ratio =
-            median(hold.iter().map(|h| h.0).collect()) / median(hold.iter().map(|h| h.1).collect());
         let flagged = frames
             .iter()
-            .filter(|f| f.4.contains("shape") && f.4.contains("view_edge"))
+            .filter(|f| {
+                f.outside_calibration.contains("shape")
+                    && f.outside_calibration.contains("view_edge")
+            })
             .count() as f64
             / frames.len() as f64;
+        let trials: std::collections::BTreeSet<&str> = frames
+            .iter()
+            .filter(|f| f.label == "hold")
+            .map(|f| f.trial.as_str())
+            .collect();
+        let ratios: Vec<f64> = trials
+            .iter()
+            .map(|t| hold_ratio(&frames, Some(t)))
+            .collect();
+        let ratio = hold_ratio(&frames, None);
         eprintln!(
-            "{name}: {:.1} % of frames within 2σ, hold read {ratio:.3} of the Nano17's, \
-             {:.0} % flagged shape and view edge",
+            "{name}: {:.1} % of frames within 2σ, hold read {ratio:.3} of the Nano17's \
+             (per trial {ratios:.3?}), {:.0} % flagged shape and view edge",
             100.0 * within,
             100.0 * flagged
         );
-        // Measured on seeds 2–4 (29–30 Nov): 99.7–100 % within 2σ for all three; the hold
-        // 1.18–1.19 (default on the four runs: a symmetric traction map, 2 mm cells,
-        // support 1.1), 0.90–0.91 (moments, symmetric) and 1.062–1.067 (default with the
-        // dowel: the same map with its elongation term). On round indenters alone the
-        // traction map reads the can's strip 18 % high, and no leave-one-out on them can
-        // see it (BENCHMARKS, "Force from the GelSight").
+        // Measured on seeds 2–4 (29 Nov–2 Dec): 99.0–100 % within 2σ for all three; the
+        // hold 1.18–1.19 (default on the four runs: a symmetric traction map, 2 mm cells,
+        // support 1.1), 0.90–0.91 (moments, symmetric) and, over ten trials, 1.004 / 1.047 /
+        // 1.004 (default with the dowel: the same map with its elongation term; every trial
+        // 0.99–1.07). On round indenters alone the traction map reads the can's strip 18 %
+        // high, and no leave-one-out on them can see it (BENCHMARKS, "Force from the
+        // GelSight").
         assert!(within >= 0.95, "{name}: {:.1} % within 2σ", 100.0 * within);
         if name != "default, with the dowel" {
             // Only round contacts in the calibration: the can's strip is an unseen shape.
             assert!(flagged >= 0.8, "{name}: {:.0} % flagged", 100.0 * flagged);
         }
         if name != "default" {
-            assert!(
-                (ratio - 1.0).abs() <= 0.10,
-                "{name}: the hold read {ratio:.3} of the Nano17's"
-            );
+            for r in ratios.iter().chain([&ratio]) {
+                assert!(
+                    (r - 1.0).abs() <= 0.10,
+                    "{name}: the hold read {ratio:.3} of the Nano17's (per trial {ratios:.3?})"
+                );
+            }
         }
     }
 }

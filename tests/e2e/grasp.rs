@@ -36,8 +36,8 @@ fn labels_by_step(dir: &Path) -> std::collections::BTreeMap<(String, String), St
 
 #[test]
 fn lifting_can_records_frames_and_a_tactile_state_only_inside_its_trials() {
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = run_trials("lifting-can", "10", 2, 3, tmp.path());
+    // Shared with `force_unseen`, which reads its second trial's hold.
+    let dir = crate::support::shared_can(2, 3);
     let m = manifest(&dir);
     assert!(
         m.devices.iter().any(|d| d.role == "camera"),

@@ -223,23 +223,29 @@ pub(crate) fn shared_dry_run(name: &str) -> PathBuf {
 /// A one-trial `lifting-can` run of `seed`, once per test process, shared by the tests that
 /// only read it (or track it in place), as [`shared_dry_run`] is.
 pub(crate) fn shared_one_trial_can(seed: u64) -> PathBuf {
+    shared_can(1, seed)
+}
+
+/// A `lifting-can` run of `trials` trials on `seed`, once per test process, shared as
+/// [`shared_one_trial_can`] is.
+pub(crate) fn shared_can(trials: u32, seed: u64) -> PathBuf {
     type Cell = std::sync::Arc<OnceLock<PathBuf>>;
-    static RUNS: OnceLock<std::sync::Mutex<std::collections::BTreeMap<u64, Cell>>> =
+    static RUNS: OnceLock<std::sync::Mutex<std::collections::BTreeMap<(u32, u64), Cell>>> =
         OnceLock::new();
     let cell = RUNS
         .get_or_init(Default::default)
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
-        .entry(seed)
+        .entry((trials, seed))
         .or_default()
         .clone();
     cell.get_or_init(|| {
-        let text = shipped_text("lifting-can").replace("times: 10", "times: 1");
-        dry_text(
-            &process_root().join(format!("one-trial-can-seed-{seed}")),
-            &text,
-            seed,
-        )
+        let text = shipped_text("lifting-can").replace("times: 10", &format!("times: {trials}"));
+        let name = match trials {
+            1 => format!("one-trial-can-seed-{seed}"),
+            n => format!("{n}-trial-can-seed-{seed}"),
+        };
+        dry_text(&process_root().join(name), &text, seed)
     })
     .clone()
 }

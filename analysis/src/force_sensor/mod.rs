@@ -52,7 +52,7 @@ pub const FEATURES: [&str; 8] = [
 /// calibrations on round contacts only, have the four).
 ///
 /// Why the fifth: calibrated on a punch and a sphere, the map reads a strip's normal force (a
-/// dowel, a can's side) high: the can's hold 17–24 % over ten trials
+/// dowel, a can's side) high: the can's hold 17–24 % over ten trials, 0–5 % with the fifth
 /// (docs/explanation/force-sensing.md, "The can's strip"). Under a curved
 /// contact the gel's surface is caught as the contact grows and carries a frictional radial
 /// shear (Spence 1975, "The Hertz contact problem with finite friction", J. Elasticity 5);

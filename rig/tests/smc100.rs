@@ -139,3 +139,28 @@ async fn a_move_ending_between_the_two_queries_of_one_poll_is_not_at_rest_short_
         );
     }
 }
+
+/// A flood the driver gave up on, left unread when the driver closed the port: the twin is
+/// still writing it when dropped, and the drop must return (CI hung here on 3 Dec, the
+/// twin's thread blocked in `write` on a full terminal nobody read). The bound is a hang
+/// check, not a speed target.
+#[tokio::test]
+async fn a_flood_left_unread_does_not_hang_the_twin_when_it_is_dropped() {
+    let t = twin();
+    let mut a = Smc100Axis::open(settings(&t), info(12.0))
+        .await
+        .expect("opens");
+    lock(t.faults()).flood_next = Some(4 << 20);
+    // The driver is closed while the twin is still writing the flood.
+    let _ = tokio::time::timeout(Duration::from_millis(50), a.status()).await;
+    drop(a);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        drop(t);
+        let _ = tx.send(());
+    });
+    assert!(
+        rx.recv_timeout(Duration::from_secs(30)).is_ok(),
+        "dropping the twin hung"
+    );
+}

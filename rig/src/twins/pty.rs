@@ -3,11 +3,15 @@
 //! serial port. Lines end in CR, LF or CRLF; each goes to the device's handler, whose reply
 //! (if any) is sent back with CRLF, subject to the injected [`Faults`].
 
+use std::fs::OpenOptions;
 use std::io::{Read, Write};
+use std::os::unix::fs::OpenOptionsExt;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
+
+use nix::fcntl::OFlag;
 
 use serialport::{SerialPort, TTYPort};
 
@@ -112,9 +116,35 @@ pub(crate) fn open_pair() -> std::io::Result<(TTYPort, String)> {
 impl Drop for PtyTwin {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
+        let Some(thread) = self.thread.take() else {
+            return;
+        };
+        // A reply still being written when no driver reads the slave side any more (a
+        // 4 MiB flood sent as the run gave up on the device) blocks the serving thread in
+        // `write` once the terminal's buffer is full, and a join would wait forever (CI
+        // hung there on 3 Dec): read the slave side empty until the thread has seen `stop`.
+        // Past a few seconds the thread is left to end on its own rather than hang the
+        // owner.
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let mut drain: Option<std::fs::File> = None;
+        let mut buf = [0u8; 4096];
+        while !thread.is_finished() {
+            if Instant::now() > deadline {
+                return;
+            }
+            if drain.is_none() {
+                drain = OpenOptions::new()
+                    .read(true)
+                    .custom_flags((OFlag::O_NOCTTY | OFlag::O_NONBLOCK).bits())
+                    .open(&self.path)
+                    .ok();
+            }
+            match drain.as_mut().map(|f| f.read(&mut buf)) {
+                Some(Ok(n)) if n > 0 => {}
+                _ => std::thread::sleep(Duration::from_millis(2)),
+            }
         }
+        let _ = thread.join();
     }
 }
 

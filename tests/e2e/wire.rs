@@ -260,10 +260,10 @@ fn late_drives_over_the_wire_still_land_every_step() {
         ])
         .arg(&bound)
         .stdout(Stdio::null())
-        .stderr(Stdio::null())
+        .stderr(std::fs::File::create(tmp.path().join("serve.log")).unwrap())
         .spawn()
         .unwrap();
-    let _serve = Serve(child);
+    let mut serve = Serve(child);
     let t0 = Instant::now();
     while !bound.is_file() {
         assert!(
@@ -281,7 +281,16 @@ fn late_drives_over_the_wire_still_land_every_step() {
         .arg(tmp.path().join("runs"))
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    if !o.status.success() {
+        // Whether the twins were still there, and what `sim serve` said, tell a stalled
+        // twin from one that died.
+        let alive = matches!(serve.0.try_wait(), Ok(None));
+        let log = std::fs::read_to_string(tmp.path().join("serve.log")).unwrap_or_default();
+        panic!(
+            "run failed: {}\nsim serve still running: {alive}; its stderr:\n{log}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
     let dir = std::path::PathBuf::from(String::from_utf8_lossy(&o.stdout).trim());
     let rows = csv_rows(&dir.join("steps.csv"));
     assert_eq!(rows.len(), 11);

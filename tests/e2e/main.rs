@@ -8,6 +8,7 @@ mod api;
 mod bonded_punch;
 mod bonded_sphere;
 mod cache;
+mod clocked;
 mod dataset_maps;
 mod dry_run;
 mod export;

@@ -461,16 +461,41 @@ impl Renderer {
     ///
     /// The colour change of each field cell is computed once; per pixel row the two cell
     /// rows around it are blended once, leaving one interpolation per pixel. Slopes below
-    /// 0.01 (under half a grey level) are skipped.
+    /// 0.01 (under half a grey level) are skipped, and so are the cells no pixel reads: the
+    /// field's period adds twelve layer thicknesses to the view, so most of its cells lie
+    /// outside the picture.
     fn shade(&self, img: &mut [f32], s: &SurfaceView) {
         let g = &s.field.grid;
         let n = g.n;
         let uz = &s.field.uz;
         let gain = SHADE_GAIN;
-        let mut delta = vec![[0.0f32; 3]; n * n];
+        let (w, h) = (self.width as usize, self.height as usize);
+        if w == 0 || h == 0 || n < 3 {
+            return;
+        }
+        let cell_of = |mm: f64| -> (usize, f32) {
+            let f = (mm / g.dx + (n / 2) as f64 - 0.5).clamp(0.0, (n - 2) as f64);
+            (f.floor() as usize, (f - f.floor()) as f32)
+        };
+        let col_cell = |px: usize| {
+            cell_of((px as f64 + 0.5 - w as f64 / 2.0) * self.mm_per_px - s.centre_mm.0)
+        };
+        let row_cell = |py: usize| {
+            cell_of((py as f64 + 0.5 - h as f64 / 2.0) * self.mm_per_px - s.centre_mm.1)
+        };
+        // The cells any pixel reads (its cell and the next, along each axis), inside the
+        // border where the central difference is defined.
+        let (rx0, rx1) = (col_cell(0).0.max(1), (col_cell(w - 1).0 + 1).min(n - 2));
+        let (ry0, ry1) = (row_cell(0).0.max(1), (row_cell(h - 1).0 + 1).min(n - 2));
+        if rx0 > rx1 || ry0 > ry1 {
+            return;
+        }
+        let rw = rx1 - rx0 + 1;
+        let at = |i: usize, j: usize| (j - ry0) * rw + (i - rx0);
+        let mut delta = vec![[0.0f32; 3]; rw * (ry1 - ry0 + 1)];
         let (mut lo_x, mut hi_x, mut lo_y, mut hi_y) = (usize::MAX, 0, usize::MAX, 0);
-        for j in 1..n - 1 {
-            for i in 1..n - 1 {
+        for j in ry0..=ry1 {
+            for i in rx0..=rx1 {
                 let k = j * n + i;
                 let sx = (uz[k + 1] - uz[k - 1]) / (2.0 * g.dx);
                 let sy = (uz[k + n] - uz[k - n]) / (2.0 * g.dx);
@@ -480,7 +505,7 @@ impl Renderer {
                     lo_y = lo_y.min(j - 1);
                     hi_y = hi_y.max(j + 1);
                     for (ch, (lx, ly)) in self.lights.iter().enumerate() {
-                        delta[k][ch] = (gain * (sx * lx + sy * ly)) as f32;
+                        delta[at(i, j)][ch] = (gain * (sx * lx + sy * ly)) as f32;
                     }
                 }
             }
@@ -488,7 +513,14 @@ impl Renderer {
         if lo_x > hi_x {
             return;
         }
-        let (w, h) = (self.width as usize, self.height as usize);
+        // A cell outside the range has no colour change here (as one whose slope is small).
+        let delta_at = |i: usize, j: usize| -> [f32; 3] {
+            if (rx0..=rx1).contains(&i) && (ry0..=ry1).contains(&j) {
+                delta[at(i, j)]
+            } else {
+                [0.0; 3]
+            }
+        };
         let to_px = |cell: usize, centre: f64, half: f64| {
             (half + (g.coord(cell) + centre) / self.mm_per_px) as isize
         };
@@ -496,24 +528,17 @@ impl Renderer {
         let x1 = to_px(hi_x, s.centre_mm.0, w as f64 / 2.0).clamp(0, w as isize - 1) as usize;
         let y0 = to_px(lo_y, s.centre_mm.1, h as f64 / 2.0).clamp(0, h as isize - 1) as usize;
         let y1 = to_px(hi_y, s.centre_mm.1, h as f64 / 2.0).clamp(0, h as isize - 1) as usize;
-        let cell_of = |mm: f64| -> (usize, f32) {
-            let f = (mm / g.dx + (n / 2) as f64 - 0.5).clamp(0.0, (n - 2) as f64);
-            (f.floor() as usize, (f - f.floor()) as f32)
-        };
-        let cols: Vec<(usize, f32)> = (x0..=x1)
-            .map(|px| cell_of((px as f64 + 0.5 - w as f64 / 2.0) * self.mm_per_px - s.centre_mm.0))
-            .collect();
+        let cols: Vec<(usize, f32)> = (x0..=x1).map(col_cell).collect();
         let (c_lo, c_hi) = (
             cols.first().map(|c| c.0).unwrap_or(0),
             cols.last().map(|c| c.0 + 1).unwrap_or(0),
         );
         let mut row = vec![[0.0f32; 3]; n];
         for py in y0..=y1 {
-            let (cj, ty) =
-                cell_of((py as f64 + 0.5 - h as f64 / 2.0) * self.mm_per_px - s.centre_mm.1);
-            for ci in c_lo..=c_hi.min(n - 1) {
-                let (a, b) = (delta[cj * n + ci], delta[(cj + 1) * n + ci]);
-                row[ci] = [
+            let (cj, ty) = row_cell(py);
+            for (ci, cell) in row.iter_mut().enumerate().take(c_hi + 1).skip(c_lo) {
+                let (a, b) = (delta_at(ci, cj), delta_at(ci, cj + 1));
+                *cell = [
                     a[0] + ty * (b[0] - a[0]),
                     a[1] + ty * (b[1] - a[1]),
                     a[2] + ty * (b[2] - a[2]),
@@ -583,6 +608,118 @@ impl Renderer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shading as first written: every cell of the field's grid differenced, the
+    /// bounding box of the steep cells mapped to pixels and clamped to the picture.
+    fn shade_every_cell(r: &Renderer, img: &mut [f32], s: &SurfaceView) {
+        let (g, n, uz) = (&s.field.grid, s.field.grid.n, &s.field.uz);
+        let mut delta = vec![[0.0f32; 3]; n * n];
+        let (mut lo_x, mut hi_x, mut lo_y, mut hi_y) = (usize::MAX, 0, usize::MAX, 0);
+        for j in 1..n - 1 {
+            for i in 1..n - 1 {
+                let k = j * n + i;
+                let sx = (uz[k + 1] - uz[k - 1]) / (2.0 * g.dx);
+                let sy = (uz[k + n] - uz[k - n]) / (2.0 * g.dx);
+                if sx.abs() + sy.abs() > 1e-2 {
+                    (lo_x, hi_x) = (lo_x.min(i - 1), hi_x.max(i + 1));
+                    (lo_y, hi_y) = (lo_y.min(j - 1), hi_y.max(j + 1));
+                    for (ch, (lx, ly)) in r.lights.iter().enumerate() {
+                        delta[k][ch] = (SHADE_GAIN * (sx * lx + sy * ly)) as f32;
+                    }
+                }
+            }
+        }
+        if lo_x > hi_x {
+            return;
+        }
+        let (w, h) = (r.width as usize, r.height as usize);
+        let to_px = |cell: usize, centre: f64, half: f64, len: usize| {
+            ((half + (g.coord(cell) + centre) / r.mm_per_px) as isize).clamp(0, len as isize - 1)
+                as usize
+        };
+        let cell_of = |mm: f64| -> (usize, f32) {
+            let f = (mm / g.dx + (n / 2) as f64 - 0.5).clamp(0.0, (n - 2) as f64);
+            (f.floor() as usize, (f - f.floor()) as f32)
+        };
+        let (cx, cy) = s.centre_mm;
+        let (x0, x1) = (
+            to_px(lo_x, cx, w as f64 / 2.0, w),
+            to_px(hi_x, cx, w as f64 / 2.0, w),
+        );
+        let (y0, y1) = (
+            to_px(lo_y, cy, h as f64 / 2.0, h),
+            to_px(hi_y, cy, h as f64 / 2.0, h),
+        );
+        for py in y0..=y1 {
+            let (cj, ty) = cell_of((py as f64 + 0.5 - h as f64 / 2.0) * r.mm_per_px - cy);
+            for px in x0..=x1 {
+                let (ci, tx) = cell_of((px as f64 + 0.5 - w as f64 / 2.0) * r.mm_per_px - cx);
+                let blend = |ci: usize| -> [f32; 3] {
+                    let (a, b) = (delta[cj * n + ci], delta[(cj + 1) * n + ci]);
+                    [0, 1, 2].map(|c| a[c] + ty * (b[c] - a[c]))
+                };
+                let (a, b) = (blend(ci), blend(ci + 1));
+                for c in 0..3 {
+                    img[(py * w + px) * 3 + c] += a[c] + tx * (b[c] - a[c]);
+                }
+            }
+        }
+    }
+
+    /// Shading only the cells some pixel reads gives the picture shading every cell gave,
+    /// bit for bit: a dimple wider than the view, one in a corner, one beyond the view, on
+    /// field grids finer and coarser than the pixels.
+    #[test]
+    fn shading_the_cells_the_picture_reads_is_shading_every_cell() {
+        let layout = MarkerLayout::Grid {
+            columns: 3,
+            rows: 2,
+            spacing_mm: 4.0,
+            diameter_mm: 1.0,
+        };
+        let r = Renderer::for_view(&layout, 16.0, 12.0, 160, 120);
+        for (n, dx) in [(128, 0.3), (64, 0.11)] {
+            let grid = mechanics::operator::Grid { n, dx };
+            for (centre_mm, radius_mm) in
+                [((0.5, -0.3), 14.0), ((7.0, 5.5), 3.0), ((30.0, 0.0), 2.0)]
+            {
+                let uz: Vec<f64> = (0..grid.len())
+                    .map(|k| {
+                        let (x, y) = grid.xy(k);
+                        let r2 = (x * x + y * y) / (radius_mm * radius_mm);
+                        0.4 * (1.0 - r2).max(0.0).powi(2)
+                    })
+                    .collect();
+                let z = vec![0.0; grid.len()];
+                let view = SurfaceView {
+                    field: Field {
+                        grid,
+                        ux: z.clone(),
+                        uy: z,
+                        uz,
+                    },
+                    centre_mm,
+                    rotation_rad: 0.0,
+                };
+                let got = r.background_layer(Some(&view));
+                let mut want = r.background.clone();
+                shade_every_cell(&r, &mut want, &view);
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let tag = format!("{n} cells of {dx} mm, centre {centre_mm:?}");
+                assert!(bits(&got) == bits(&want), "{tag}");
+                let shaded = got
+                    .iter()
+                    .zip(&r.background)
+                    .filter(|(a, b)| a != b)
+                    .count();
+                assert_eq!(
+                    shaded > 0,
+                    centre_mm.0 < 20.0,
+                    "{tag}: {shaded} channels shaded"
+                );
+            }
+        }
+    }
 
     #[test]
     fn the_vector_pass_is_the_scalar_cast_byte_for_byte() {

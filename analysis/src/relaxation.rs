@@ -63,18 +63,29 @@ fn bounded_svd_solve(ata: DMatrix<f64>, aty: &DVector<f64>) -> Option<DVector<f6
 /// Least-squares linear parameters [F∞, A…] and the residual for time constants `taus`.
 ///
 /// Forms the (at most 4×4) normal equations in one pass and solves them by SVD with a
-/// relative cut-off, so nearly equal τ give a minimum-norm answer instead of a blow-up. The
-/// exponentials of that pass are kept for the residual: they were most of the fit's cost,
-/// computed twice (BENCHMARKS.md, "what a report's relaxation fits cost").
+/// relative cut-off, so nearly equal τ give a minimum-norm answer instead of a blow-up.
 fn linear_part(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(DVector<f64>, DVector<f64>)> {
-    let m = taus.len() + 1;
+    let columns: Vec<Vec<f64>> = taus.iter().map(|tau| decay(t, *tau)).collect();
+    let refs: Vec<&[f64]> = columns.iter().map(Vec::as_slice).collect();
+    linear_part_of(y, &refs)
+}
+
+/// The column e^{−t/τ} over the record.
+fn decay(t: &[f64], tau: f64) -> Vec<f64> {
+    t.iter().map(|ti| (-ti / tau).exp()).collect()
+}
+
+/// [`linear_part`] from the columns e^{−t/τₖ}, computed once by the caller: the exponentials
+/// were most of a fit's cost (docs/benchmarks/reports.md, "The relaxation fits, cheaper").
+fn linear_part_of(y: &[f64], columns: &[&[f64]]) -> Option<(DVector<f64>, DVector<f64>)> {
+    let m = columns.len() + 1;
     let mut ata = DMatrix::<f64>::zeros(m, m);
     let mut aty = DVector::<f64>::zeros(m);
-    let mut rows = vec![0.0; t.len() * m];
-    for ((ti, yi), row) in t.iter().zip(y).zip(rows.chunks_exact_mut(m)) {
+    let mut row = vec![0.0; m];
+    for (i, yi) in y.iter().enumerate() {
         row[0] = 1.0;
-        for (k, tau) in taus.iter().enumerate() {
-            row[k + 1] = (-ti / tau).exp();
+        for (k, col) in columns.iter().enumerate() {
+            row[k + 1] = col[i];
         }
         for a in 0..m {
             aty[a] += row[a] * yi;
@@ -85,12 +96,57 @@ fn linear_part(t: &[f64], y: &[f64], taus: &[f64]) -> Option<(DVector<f64>, DVec
     }
     let c = bounded_svd_solve(ata, &aty)?;
     let r = DVector::from_iterator(
-        t.len(),
-        y.iter()
-            .zip(rows.chunks_exact(m))
-            .map(|(yi, row)| yi - c[0] - (1..m).map(|k| c[k] * row[k]).sum::<f64>()),
+        y.len(),
+        y.iter().enumerate().map(|(i, yi)| {
+            yi - c[0]
+                - columns
+                    .iter()
+                    .enumerate()
+                    .map(|(k, col)| c[k + 1] * col[i])
+                    .sum::<f64>()
+        }),
     );
     Some((c, r))
+}
+
+/// The columns e^{−t/τ} of the last few time constants asked for. Levenberg–Marquardt's
+/// finite-difference Jacobian moves one time constant at a time, so each of its evaluations
+/// needs one new column, not one per term.
+struct Decays<'a> {
+    t: &'a [f64],
+    kept: std::cell::RefCell<Vec<(u64, std::rc::Rc<Vec<f64>>)>>,
+    capacity: usize,
+}
+
+impl<'a> Decays<'a> {
+    fn new(t: &'a [f64], terms: usize) -> Self {
+        Self {
+            t,
+            kept: std::cell::RefCell::new(Vec::new()),
+            capacity: 2 * terms + 2,
+        }
+    }
+
+    /// The column of `tau`: kept, or computed and kept in place of the oldest.
+    fn of(&self, tau: f64) -> std::rc::Rc<Vec<f64>> {
+        let mut kept = self.kept.borrow_mut();
+        if let Some((_, col)) = kept.iter().find(|(bits, _)| *bits == tau.to_bits()) {
+            return std::rc::Rc::clone(col);
+        }
+        let col = std::rc::Rc::new(decay(self.t, tau));
+        if kept.len() == self.capacity {
+            kept.remove(0);
+        }
+        kept.push((tau.to_bits(), std::rc::Rc::clone(&col)));
+        col
+    }
+
+    /// [`linear_part`] for `taus`, from kept columns where it can.
+    fn linear_part(&self, y: &[f64], taus: &[f64]) -> Option<(DVector<f64>, DVector<f64>)> {
+        let columns: Vec<std::rc::Rc<Vec<f64>>> = taus.iter().map(|tau| self.of(*tau)).collect();
+        let refs: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
+        linear_part_of(y, &refs)
+    }
 }
 
 /// Levenberg–Marquardt over `theta` (finite-difference Jacobian) for a residual that may
@@ -162,9 +218,10 @@ pub fn fit_exponentials(t: &[f64], y: &[f64], terms: usize) -> Option<ExpFit> {
     }
     let start = grid_start(t, y, terms)?;
     // Levenberg–Marquardt on θ over the projected residual.
+    let decays = Decays::new(t, terms);
     let residual = |theta: &[f64]| -> Option<DVector<f64>> {
         let taus: Vec<f64> = theta.iter().map(|v| v.exp()).collect();
-        linear_part(t, y, &taus).map(|(_, r)| r)
+        decays.linear_part(y, &taus).map(|(_, r)| r)
     };
     let (mut theta, converged) = levenberg_marquardt(start, 200, residual)?;
     // Order by τ, then a Gauss–Newton polish over all parameters with the exact Jacobian.

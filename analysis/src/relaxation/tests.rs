@@ -245,3 +245,30 @@ fn the_grid_start_from_one_gram_matrix_is_the_per_combination_start() {
         }
     }
 }
+
+/// The kept columns give the projection computed afresh, bit for bit, through a sequence of
+/// time constants as Levenberg–Marquardt asks for them (a base point, each constant moved
+/// alone, a new point, the base again after it was evicted).
+#[test]
+fn kept_decay_columns_give_the_fresh_projection() {
+    let (t, y) = record(30.0, 20.0, 0.0, None);
+    let decays = Decays::new(&t, 2);
+    let asks: [[f64; 2]; 8] = [
+        [2.0, 30.0],
+        [2.000002, 30.0],
+        [2.0, 30.00003],
+        [2.5, 41.0],
+        [2.500002, 41.0],
+        [2.5, 41.000041],
+        [3.0, 50.0],
+        [2.0, 30.0],
+    ];
+    for taus in asks {
+        let (kept_c, kept_r) = decays.linear_part(&y, &taus).expect("solves");
+        let (c, r) = linear_part(&t, &y, &taus).expect("solves");
+        let bits = |v: &DVector<f64>| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&kept_c), bits(&c), "{taus:?}");
+        assert_eq!(bits(&kept_r), bits(&r), "{taus:?}");
+    }
+    assert!(decays.kept.borrow().len() <= 6);
+}
